@@ -1,0 +1,1 @@
+"""Robot hardware drivers behind one Robot contract (arms, grippers, cameras) and the simulated backend."""

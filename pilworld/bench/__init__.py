@@ -1,0 +1,1 @@
+"""Benchmarks behind ``pilworld bench <name>``: each returns a JSON-ready dict of measured figures."""

@@ -1,0 +1,1 @@
+"""The ``pilworld`` command line: one entry point, one module per command."""

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# Create or reuse the project's virtual environment (.venv inside the checkout) and install the
+# project into it. Idempotent: a stamp of pyproject.toml skips the install when nothing changed.
+# Sourced by scripts/demo and scripts/test; safe to run on its own.
+#
+# PyTorch: when the venv has no torch, install torch==2.13.0 first. On this project's CPU machines
+# that picks the local CPU wheel; an unpinned `torch` would pull a multi-GB CUDA build. GPU users can
+# pre-install the torch build they want into .venv (or set PILWORLD_TORCH_SPEC) before running this.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${PILWORLD_VENV:-$ROOT/.venv}"
+PY="${PYTHON:-python3}"
+TORCH_SPEC="${PILWORLD_TORCH_SPEC:-torch==2.13.0}"
+export PIP_DISABLE_PIP_VERSION_CHECK=1
+
+log() { printf '[bootstrap] %s\n' "$*" >&2; }
+
+if ! command -v "$PY" >/dev/null 2>&1; then
+  log "error: $PY not found; install Python 3.11+ or set PYTHON=/path/to/python3"
+  exit 1
+fi
+if ! "$PY" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)'; then
+  log "error: Python 3.11+ is required, $PY is $("$PY" --version 2>&1)"
+  exit 1
+fi
+
+if [ ! -x "$VENV/bin/python" ]; then
+  log "creating virtual environment in $VENV"
+  "$PY" -m venv "$VENV"
+fi
+
+stamp="$VENV/.pilworld-install"
+want="$(cat "$ROOT/pyproject.toml" | sha256sum | cut -d' ' -f1) $ROOT"
+if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
+  exit 0
+fi
+
+pip_log="$VENV/pip-install.log"
+pip_install() {
+  # pip's output goes to a log (it is long and full of index warnings); show its tail on failure.
+  if ! "$VENV/bin/python" -m pip install "$@" >>"$pip_log" 2>&1; then
+    log "error: pip install $* failed; last lines of $pip_log:"
+    tail -n 25 "$pip_log" >&2
+    exit 1
+  fi
+}
+
+: >"$pip_log"
+if ! "$VENV/bin/python" -c 'import torch' >/dev/null 2>&1; then
+  log "installing $TORCH_SPEC (CPU build) ..."
+  pip_install "$TORCH_SPEC"
+fi
+log "installing pilworld and its dependencies (editable, with dev tools) ..."
+pip_install -e "$ROOT[dev]"
+echo "$want" >"$stamp"
+log "environment ready: $VENV"
