@@ -282,7 +282,7 @@ class CameraModel:
             r2 = xn * xn + yn * yn
             inside = r2 < r2_max
             in_fov = in_front & inside
-            if in_fov.all() or inside.all():
+            if inside.all():
                 xd, yd, w = distortion.distort_xy(xn, yn, r2)
             else:
                 # Beyond the monotonic radius the fit folds back; pull the ray radially onto the edge of

@@ -23,5 +23,5 @@ def load_npy(path: str | Path, *, what: str) -> NDArray[np.float64]:
         raise ValueError(f"{what}: {path} holds dtype {arr.dtype}; expected real numbers")
     if not np.all(np.isfinite(arr)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
-        raise ValueError(f"{what}: {path} has a non-finite value {arr[bad]!r} at index {bad}")
+        raise ValueError(f"{what}: {path} has a non-finite value {arr[bad].item()!r} at index {bad}")
     return arr.astype(np.float64)

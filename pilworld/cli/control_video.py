@@ -70,12 +70,17 @@ def run(args: argparse.Namespace) -> int:
     gamma = ControlVideo.from_rig(rig, spec, ControlVideoStyle(trace_length=args.trace_length))
 
     actions = load_npy(args.actions, what="--actions")
-    if actions.ndim == 2:
-        actions = actions[None]
-    if actions.ndim != 3 or actions.shape[-1] != STATE_DIM:
+    if not (actions.ndim in (2, 3) and actions.shape[-1] == STATE_DIM):
         raise ValueError(
             f"--actions: expected shape (H, {STATE_DIM}) or (R, H, {STATE_DIM}), "
             f"got {actions.shape} from {args.actions}"
+        )
+    if actions.ndim == 2:
+        actions = actions[None]
+    if actions.shape[1] < spec.executed_steps:
+        raise ValueError(
+            f"--actions: chunk has {actions.shape[1]} steps but K·Δ = {spec.frames}·{spec.stride} = "
+            f"{spec.executed_steps} are needed ({args.actions})"
         )
     previous = None
     if args.previous_state is not None:
