@@ -89,18 +89,20 @@ _REQUIRED: Final = ("format", "image_size", "K", "dist", "T_cam_base")
 class Projection:
     """Everything :meth:`CameraModel.project_detailed` knows about each point; ``...`` = input batch shape.
 
-    ``uv`` is always finite. For visible points it is the OpenCV pixel. For points in front of the
-    camera but outside the valid (monotonic) field of view, the ray is pulled back radially onto the
-    edge of that field of view, distorted there, and the distorted offset pushed out again by the same
-    factor: a finite stand-in that keeps the direction of the point and grows with its angle instead of
-    folding back. Points not in front are first moved onto the near plane ``Z_c = NEAR_Z`` (keeping
-    ``X_c``, ``Y_c``) and then treated the same way.
+    ``uv`` is always finite (for input coordinates below ~1e30 m). For visible points it is the OpenCV
+    pixel. For points in front of the camera but outside the valid (monotonic) field of view, the ray is
+    pulled back radially onto the edge of that field of view, distorted there, and the distorted offset
+    pushed out again by the same factor: a finite stand-in that keeps the direction of the point and
+    grows with its angle instead of folding back. Points not in front are first moved onto the near
+    plane ``Z_c = NEAR_Z`` (keeping ``X_c``, ``Y_c``) and then treated the same way.
     """
 
     uv: FloatArray  #: ``(..., 2)`` float64 pixel coordinates (u right, v down; integers are pixel centres)
     depth: FloatArray  #: ``(...)`` float64 ``Z_c`` in metres (camera frame; negative = behind)
     in_front: BoolArray  #: ``(...)`` ``Z_c > NEAR_Z``
-    in_valid_fov: BoolArray  #: ``(...)`` in front and inside the distortion model's monotonic radius
+    #: ``(...)`` in front and inside the distortion model's monotonic radius (and, for a tilted sensor,
+    #: on the side where the tilt homography does not flip the image)
+    in_valid_fov: BoolArray
     in_image: BoolArray  #: ``(...)`` ``uv`` inside ``[-0.5, width - 0.5) x [-0.5, height - 0.5)``
     visible: BoolArray  #: ``(...)`` ``in_valid_fov & in_image``
 

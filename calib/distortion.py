@@ -142,7 +142,7 @@ def _monotonic_radius(k1: float, k2: float, k3: float, k4: float, k5: float, k6:
     )
     s_min = math.inf
     for poly in (p, den):
-        roots = npoly.polyroots(npoly.polytrim(poly))  # trimming leading zeros lowers the degree
+        roots = npoly.polyroots(npoly.polytrim(poly))  # drop zero top coefficients: true degree
         for root in np.atleast_1d(roots):
             re, im = float(np.real(root)), float(np.imag(root))
             if re > 0.0 and abs(im) <= _REAL_ROOT_RTOL * abs(root):
@@ -154,7 +154,7 @@ class DistortionModel:
     """Validated OpenCV distortion coefficients with everything needed to apply them precomputed.
 
     Build it once (e.g. per camera) and call :meth:`distort_xy` in hot loops: the terms whose
-    coefficients are all zero are skipped. Instances are immutable.
+    coefficients are all zero are skipped. Treat instances as immutable.
     """
 
     __slots__ = (
