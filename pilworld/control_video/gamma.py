@@ -176,8 +176,13 @@ class ControlVideo:
 
     # ------------------------------------------------------------------ drawing
 
-    def _draw(self, geo: ControlGeometry, b: int, out: NDArray[np.uint8]) -> None:
-        """Draw chunk ``b`` of ``geo`` into ``out`` (K, H, W, 3), zeroed by the caller."""
+    def _draw(self, geo: ControlGeometry, b: int, out: NDArray[np.uint8], layer: NDArray[np.uint8]) -> None:
+        """Draw chunk ``b`` of ``geo`` into ``out`` (K, H, W, 3), zeroed by the caller.
+
+        Each arm is drawn on its own layer (the left into ``out``, the right into the scratch ``layer``)
+        and the layers are merged by per-channel maximum, so one arm's marker never hides the other's:
+        with the default pure colours each arm keeps its own channel even where the markers overlap.
+        """
         L = self.style.trace_length
         K = out.shape[0]
         off = geo.offset
@@ -191,18 +196,20 @@ class ControlVideo:
         marker = geo.marker[b].tolist()
         colors = self.style.colors
         line, circle, lt, th = cv2.line, cv2.circle, self._line_type, self._thickness
-        for k in range(K):
-            img = out[k]
-            e = k + off  # this frame's index in the extended sequence
-            # Oldest (dimmest) segments first so newer ones are drawn on top; markers last.
-            for j in range(min(L, e) - 1, -1, -1):
-                i = e - j
-                for arm in (0, 1):
+        layer.fill(0)
+        for arm, target in ((0, out), (1, layer)):
+            fade, color = self._fade_colors[arm], colors[arm]
+            for k in range(K):
+                img = target[k]
+                e = k + off  # this frame's index in the extended sequence
+                # Oldest (dimmest) segments first so newer ones are drawn on top; the marker last.
+                for j in range(min(L, e) - 1, -1, -1):
+                    i = e - j
                     if seg_ok[i][arm]:
-                        line(img, sa[i][arm], sb[i][arm], self._fade_colors[arm][j], th, lt, _SHIFT)
-            for arm in (0, 1):
+                        line(img, sa[i][arm], sb[i][arm], fade[j], th, lt, _SHIFT)
                 if marker[k][arm]:
-                    circle(img, centres[k][arm], radii[k][arm], colors[arm], -1, lt, _SHIFT)
+                    circle(img, centres[k][arm], radii[k][arm], color, -1, lt, _SHIFT)
+        np.maximum(out, layer, out=out)
 
     def render_batch(
         self,
@@ -215,8 +222,9 @@ class ControlVideo:
             raise ValueError(f"actions: render_batch expects (B, H, {STATE_DIM}), got {arr.shape}")
         geo = self.geometry(arr[:, self.spec.stride_indices()], previous_states)
         out = np.zeros((arr.shape[0], self.spec.frames, self.height, self.width, 3), dtype=np.uint8)
+        layer = np.empty(out.shape[1:], dtype=np.uint8)
         for b in range(arr.shape[0]):
-            self._draw(geo, b, out[b])
+            self._draw(geo, b, out[b], layer)
         return out
 
     def __call__(

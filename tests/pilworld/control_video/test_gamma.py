@@ -12,6 +12,7 @@ from pilworld.config.rig import RigConfig
 from pilworld.control_video import ControlVideo, ControlVideoStyle
 from pilworld.control_video.examples import HOME_Q14, random_chunks, reach_and_grasp_chunk
 from pilworld.control_video.gamma import clip_segments
+from pilworld.kinematics import DualArmKinematics
 from pilworld.types import ActionChunk, ChunkSpec
 
 SIM = Path(__file__).resolve().parents[3] / "configs" / "rig" / "sim_dual_ur5e.yaml"
@@ -212,3 +213,20 @@ def test_bad_style_raises() -> None:
         ControlVideoStyle(radius_closed=0.1, radius_open=0.05)
     with pytest.raises(ValueError, match="distinct colours"):
         ControlVideoStyle(left_color=(1, 2, 3), right_color=(1, 2, 3))
+
+
+def test_overlapping_markers_keep_their_own_channel(rig: RigConfig) -> None:
+    # Both arms on the same mount with the same joints: the two markers coincide exactly.
+    kin = DualArmKinematics(left=rig.kinematics.left, right=rig.kinematics.left)
+    gamma = ControlVideo(kin, rig.head_camera_model, style=ControlVideoStyle(trace_length=0))
+    chunk = np.repeat(HOME_Q14[None].astype(np.float64), 50, axis=0)
+    chunk[:, 7:13] = chunk[:, 0:6]
+    chunk[:, 6], chunk[:, 13] = 1.0, 0.0  # left open (large), right closed (small), right drawn second
+    frame = gamma(chunk)[0]
+    uv, _ = _expected_uv(rig, chunk)
+    r = gamma.style.marker_radius(np.array([1.0, 0.0]), 128, 128)
+    for arm, channel in ((0, 0), (1, 2)):
+        area = frame[..., channel].astype(np.float64).sum() / 255.0
+        assert area == pytest.approx(np.pi * r[arm] ** 2, rel=0.08), "a marker was hidden by the other arm"
+        c = _centroid(frame, channel, uv[0, 0], r[arm])
+        assert np.linalg.norm(c - uv[0, 0]) < 0.5
