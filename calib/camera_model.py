@@ -49,6 +49,7 @@ import numpy.typing as npt
 import yaml
 
 from calib.distortion import DistortionModel, as_distortion_coefficients
+from pilworld.geometry import as_finite_array
 
 __all__ = ["FORMAT", "NEAR_Z", "RIGID_ATOL", "CameraModel", "Projection"]
 
@@ -478,16 +479,8 @@ def _short(value: object, limit: int = 160) -> str:
 
 def _flat_points(points: npt.ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
     """``points`` as float64 ``(N, 3)`` (a view when possible) and its batch shape; cheap checks only."""
-    try:
-        p = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"points: expected a real array of shape (..., 3), got {_short(points)}") from exc
-    if p.ndim == 0 or p.shape[-1] != 3:
-        raise ValueError(f"points: expected shape (..., 3) (base-frame xyz in metres), got shape {p.shape}")
-    flat = p.reshape(-1, 3)
-    if not np.isfinite(flat).all():
-        raise ValueError(f"points: must be finite, got NaN/inf in {_short(p.tolist())}")
-    return flat, p.shape[:-1]
+    p = as_finite_array(points, "points", (3,))  # base-frame xyz in metres
+    return p.reshape(-1, 3), p.shape[:-1]
 
 
 def _float_matrix(value: object, name: str, rows: int, cols: int) -> FloatArray:

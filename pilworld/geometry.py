@@ -41,12 +41,20 @@ FloatArray = npt.NDArray[np.float64]
 _GIMBAL_EPS = 1e-9
 
 
-def _as_float64(value: npt.ArrayLike, name: str) -> FloatArray:
-    """Convert ``value`` to a float64 array and reject NaN/inf, naming ``name`` in the error."""
+def as_finite_array(value: npt.ArrayLike, name: str, trailing: tuple[int, ...] = ()) -> FloatArray:
+    """``value`` as float64 with shape ``(..., *trailing)`` and only finite entries.
+
+    The one input check of the geometry code (poses, joint vectors, points): errors name ``name``,
+    the bad shape or the first bad entry and its index.
+    """
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be a real-valued array-like; got {type(value).__name__}") from exc
+    n = len(trailing)
+    if arr.ndim < n or arr.shape[arr.ndim - n :] != trailing:
+        allowed = "(..., " + ", ".join(str(t) for t in trailing) + ")"
+        raise ValueError(f"{name} must have shape {allowed}; got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
         raise ValueError(
@@ -56,29 +64,17 @@ def _as_float64(value: npt.ArrayLike, name: str) -> FloatArray:
     return arr
 
 
-def _check_trailing(arr: FloatArray, trailing: tuple[int, ...], name: str) -> None:
-    """Require ``arr.shape`` to end with ``trailing`` (any number of leading batch dimensions)."""
-    n = len(trailing)
-    if arr.ndim < n or arr.shape[arr.ndim - n :] != trailing:
-        allowed = "(..., " + ", ".join(str(t) for t in trailing) + ")"
-        raise ValueError(f"{name} must have shape {allowed}; got shape {arr.shape}")
-
-
 def _as_vectors(value: npt.ArrayLike, name: str, size: int = 3) -> FloatArray:
-    arr = _as_float64(value, name)
-    _check_trailing(arr, (size,), name)
-    return arr
+    return as_finite_array(value, name, (size,))
 
 
 def _as_matrices(value: npt.ArrayLike, name: str, size: int) -> FloatArray:
-    arr = _as_float64(value, name)
-    _check_trailing(arr, (size, size), name)
-    return arr
+    return as_finite_array(value, name, (size, size))
 
 
 def _axis_rotation(angle: npt.ArrayLike, axis: int, name: str) -> FloatArray:
     """Rotation by ``angle`` about coordinate ``axis`` (0=x, 1=y, 2=z); shape ``angle.shape + (3, 3)``."""
-    a = _as_float64(angle, name)
+    a = as_finite_array(angle, name)
     c, s = np.cos(a), np.sin(a)
     out = np.zeros((*a.shape, 3, 3), dtype=np.float64)
     # (axis, i, j) in cyclic order x->y->z keeps the rotation right-handed: about y the plane is z->x.
@@ -215,7 +211,8 @@ def is_rigid_transform(T: npt.ArrayLike, atol: float = 1e-6) -> bool:
     if not (np.isfinite(atol) and atol >= 0):
         raise ValueError(f"atol must be a finite non-negative number; got {atol!r}")
     m = np.asarray(T, dtype=np.float64)
-    _check_trailing(m, (4, 4), "T")
+    if m.ndim < 2 or m.shape[-2:] != (4, 4):
+        raise ValueError(f"T must have shape (..., 4, 4); got shape {m.shape}")
     if not np.all(np.isfinite(m)):
         return False
     rot = m[..., :3, :3]

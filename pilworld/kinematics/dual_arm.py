@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pilworld.geometry import is_rigid_transform
+from pilworld.geometry import as_finite_array, is_rigid_transform
 from pilworld.kinematics.fk import fk
 from pilworld.kinematics.ur_dh import DHParams
 from pilworld.types import LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, STATE_DIM
@@ -49,12 +49,7 @@ class DualArmKinematics:
     right: ArmMount
 
     def _check(self, q14: NDArray[np.floating]) -> NDArray[np.float64]:
-        q = np.asarray(q14, dtype=np.float64)
-        if q.ndim == 0 or q.shape[-1] != STATE_DIM:
-            raise ValueError(f"q14: expected shape (..., {STATE_DIM}), got {q.shape}")
-        if not np.all(np.isfinite(q)):
-            raise ValueError("q14: joint vector contains non-finite values")
-        return q
+        return as_finite_array(q14, "q14", (STATE_DIM,))
 
     def tcp_poses(self, q14: NDArray[np.floating]) -> NDArray[np.float64]:
         """(..., 14) → (..., 2, 4, 4) left and right TCP poses in the rig frame."""

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from pilworld.geometry import FloatArray, is_rigid_transform
+from pilworld.geometry import FloatArray, as_finite_array, is_rigid_transform
 from pilworld.kinematics.ur_dh import DHParams, dh_params
 
 __all__ = ["UrArm", "fk", "fk_flange", "fk_frames", "joint_transforms"]
@@ -29,20 +29,8 @@ def _resolve(dh: DHParams | str) -> DHParams:
 
 
 def _validate_q(q: npt.ArrayLike) -> FloatArray:
-    """``q`` as float64 ``(..., 6)``; ValueError naming ``q`` on a bad shape or non-finite entry."""
-    try:
-        arr = np.asarray(q, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"q must be a real-valued array of joint angles; got {type(q).__name__}") from exc
-    if arr.ndim == 0 or arr.shape[-1] != 6:
-        raise ValueError(f"q must have shape (..., 6) (six UR joint angles in radians); got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
-        raise ValueError(
-            f"q must contain only finite joint angles; got {float(arr[bad])} at index {bad} "
-            f"(shape {arr.shape}); NaN and inf are not allowed"
-        )
-    return arr
+    """``q`` as float64 ``(..., 6)`` joint angles in radians; ValueError naming ``q`` otherwise."""
+    return as_finite_array(q, "q", (6,))
 
 
 def _validate_tcp(tcp: npt.ArrayLike | None) -> FloatArray | None:

@@ -35,9 +35,9 @@ def test_gripper_points_compose_each_arm_independently() -> None:
 
 def test_dual_arm_errors() -> None:
     kin = _kin()
-    with pytest.raises(ValueError, match=r"q14: expected shape \(\.\.\., 14\)"):
+    with pytest.raises(ValueError, match=r"q14 must have shape \(\.\.\., 14\); got shape \(13,\)"):
         kin.gripper_points(np.zeros(13))
-    with pytest.raises(ValueError, match="non-finite"):
+    with pytest.raises(ValueError, match="q14 must contain only finite values; got nan at index"):
         kin.gripper_points(np.full(14, np.nan))
     with pytest.raises(ValueError, match="T_rig_base: expected a rigid 4x4"):
         ArmMount(dh_params("ur5e"), np.eye(4) * 2, np.eye(4))
