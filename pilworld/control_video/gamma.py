@@ -137,6 +137,8 @@ class ControlVideo:
         self, stride_actions: NDArray[np.float64], previous_state: NDArray[np.floating] | None = None
     ) -> ControlGeometry:
         """Projected markers and trace segments for stride-aligned actions (B, K, 14)."""
+        if stride_actions.ndim != 3 or stride_actions.shape[-1] != STATE_DIM:
+            raise ValueError(f"stride_actions: expected shape (B, K, {STATE_DIM}), got {stride_actions.shape}")
         B, K = stride_actions.shape[:2]
         offset = 0
         seq = stride_actions
