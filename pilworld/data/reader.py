@@ -1,0 +1,227 @@
+"""Reading a LeRobot v3.0 dataset: ours (one file per episode) or any packed one LeRobot wrote.
+
+The episodes table (``meta/episodes/*.parquet``) is the authority: an episode exists when its row
+does. Files a killed writer left behind without a row are invisible here (the next writer deletes
+them).
+"""
+
+from __future__ import annotations
+
+import json
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+from numpy.typing import NDArray
+
+from pilworld.data import layout
+from pilworld.data.episode import Episode
+from pilworld.data.spec import ACTION_KEY, CODEBASE_VERSION, IMAGE_PREFIX, STATE_KEY, DatasetSpec
+from pilworld.data.video_codec import decode_video
+
+
+class DatasetError(ValueError):
+    """A dataset folder is missing, not v3.0, or inconsistent; the message names the file."""
+
+
+def read_info(root: Path) -> dict[str, Any]:
+    path = root / layout.INFO
+    if not path.is_file():
+        raise DatasetError(f"{root}: not a LeRobot dataset (no {layout.INFO})")
+    try:
+        info: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as err:
+        raise DatasetError(f"{path}: not valid JSON: {err}") from None
+    return info
+
+
+def list_column(table: pa.Table, key: str, width: int) -> NDArray[np.float32]:
+    """A list<float> column of ``table`` as float32 (rows, width)."""
+    col = table.column(key).combine_chunks()
+    values = np.asarray(col.flatten().to_numpy(zero_copy_only=False), dtype=np.float32)
+    return values.reshape(len(col), width)
+
+
+def _names(feature: dict[str, Any], prefix: str) -> tuple[str, ...]:
+    """Feature names as a flat tuple (LeRobot allows a list, {"motors": [...]}, or None)."""
+    n = int(feature["shape"][0])
+    names = feature.get("names")
+    if isinstance(names, dict):
+        names = [x for group in names.values() for x in group]
+    if not isinstance(names, list) or len(names) != n:
+        names = [f"{prefix}_{i}" for i in range(n)]
+    return tuple(str(x) for x in names)
+
+
+def spec_from_info(info: dict[str, Any], pilworld_json: dict[str, Any] | None, *, source: str) -> DatasetSpec:
+    """Our spec from ``meta/pilworld.json`` when present, else derived from LeRobot's features."""
+    if pilworld_json is not None:
+        return DatasetSpec.from_json(pilworld_json, source=source)
+    feats: dict[str, Any] = info.get("features", {})
+    views: dict[str, tuple[int, int]] = {}
+    for key, ft in feats.items():
+        if key.startswith(IMAGE_PREFIX):
+            if ft.get("dtype") != "video":
+                raise DatasetError(
+                    f"{source}: feature {key!r} is stored as {ft.get('dtype')!r}; only video is supported"
+                )
+            h, w = int(ft["shape"][0]), int(ft["shape"][1])
+            if ft.get("names") and list(ft["names"])[:1] == ["channels"]:  # some datasets store (C, H, W)
+                h, w = int(ft["shape"][1]), int(ft["shape"][2])
+            views[key[len(IMAGE_PREFIX) :]] = (h, w)
+    for key in (STATE_KEY, ACTION_KEY):
+        if key not in feats:
+            raise DatasetError(f"{source}: feature {key!r} missing")
+    codec = next((ft.get("info", {}).get("video.codec") for ft in feats.values() if ft.get("dtype") == "video"), None)
+    mode = "av1" if codec == "av1" else "h264"
+    return DatasetSpec(
+        fps=int(info["fps"]),
+        views=views,
+        state_names=_names(feats[STATE_KEY], "state"),
+        action_names=_names(feats[ACTION_KEY], "action"),
+        video_mode=mode,
+        robot_type=str(info.get("robot_type") or ""),
+    )
+
+
+class EpisodeStore:
+    """Read-only view of a dataset folder."""
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+        self.info = read_info(self.root)
+        version = str(self.info.get("codebase_version", ""))
+        if version != CODEBASE_VERSION:
+            raise DatasetError(
+                f"{self.root / layout.INFO}: codebase_version {version!r}; this reader needs {CODEBASE_VERSION!r} "
+                "(convert older datasets with `pilworld data convert`)"
+            )
+        pj = self.root / layout.PILWORLD
+        self.spec = spec_from_info(
+            self.info, json.loads(pj.read_text(encoding="utf-8")) if pj.is_file() else None, source=str(pj)
+        )
+        self.video_keys = [k for k, ft in self.info["features"].items() if ft.get("dtype") == "video"]
+        self._table_cache: tuple[Path, pa.Table] | None = None
+
+    # ------------------------------------------------------------------ metadata
+
+    @cached_property
+    def episodes(self) -> list[dict[str, Any]]:
+        """One dict per committed episode, ordered by episode_index."""
+        files = layout.episodes_meta_files(self.root)
+        if not files:
+            return []
+        table = pa.concat_tables([pq.read_table(f) for f in files], promote_options="permissive")
+        rows = sorted(table.to_pylist(), key=lambda r: int(r["episode_index"]))
+        for i, row in enumerate(rows):
+            if int(row["episode_index"]) != i:
+                raise DatasetError(f"{self.root / layout.EPISODES_DIR}: episode indices are not 0..N-1 (at {i})")
+        return rows
+
+    @cached_property
+    def tasks(self) -> dict[int, str]:
+        path = self.root / layout.TASKS
+        if not path.is_file():
+            return {}
+        table = pq.read_table(path)
+        if "task" in table.column_names:
+            names = table.column("task").to_pylist()
+        else:  # pandas index column, as LeRobot writes it
+            index_col = next(c for c in table.column_names if c != "task_index")
+            names = table.column(index_col).to_pylist()
+        return {int(i): str(t) for i, t in zip(table.column("task_index").to_pylist(), names, strict=True)}
+
+    @property
+    def num_episodes(self) -> int:
+        return len(self.episodes)
+
+    @property
+    def num_frames(self) -> int:
+        return sum(int(r["length"]) for r in self.episodes)
+
+    @property
+    def fps(self) -> int:
+        return int(self.info["fps"])
+
+    def __len__(self) -> int:
+        return self.num_episodes
+
+    # ------------------------------------------------------------------ frames
+
+    def _check_index(self, index: int) -> dict[str, Any]:
+        if not 0 <= index < self.num_episodes:
+            raise IndexError(f"episode {index} out of range: {self.root} has {self.num_episodes} episodes")
+        return self.episodes[index]
+
+    def frame_table(self, index: int) -> pa.Table:
+        """The per-frame rows of one episode (all columns), in frame order."""
+        row = self._check_index(index)
+        path = layout.data_path(self.root, int(row["data/chunk_index"]), int(row["data/file_index"]))
+        if self._table_cache is not None and self._table_cache[0] == path:
+            table = self._table_cache[1]
+        else:
+            if not path.is_file():
+                raise DatasetError(f"{path}: data file of episode {index} is missing")
+            table = pq.read_table(path)
+            self._table_cache = (path, table)
+        if "episode_index" in table.column_names:  # packed files hold several episodes
+            table = table.filter(pc.equal(table.column("episode_index"), index))
+        if table.num_rows != int(row["length"]):
+            raise DatasetError(f"{path}: episode {index} has {table.num_rows} rows, expected {row['length']}")
+        return table
+
+    def video_file(self, index: int, view: str) -> tuple[Path, float]:
+        """(mp4 path, from_timestamp) of one view of one episode."""
+        row = self._check_index(index)
+        key = IMAGE_PREFIX + view
+        if key not in self.video_keys:
+            raise KeyError(f"view {view!r} not in {self.root} (views: {sorted(self.spec.views)})")
+        path = layout.video_path(
+            self.root, key, int(row[f"videos/{key}/chunk_index"]), int(row[f"videos/{key}/file_index"])
+        )
+        return path, float(row.get(f"videos/{key}/from_timestamp") or 0.0)
+
+    def frames(self, index: int, view: str, start: int = 0, count: int | None = None) -> NDArray[np.uint8]:
+        """Decoded RGB frames ``start .. start+count`` of one view, uint8 (N, H, W, 3)."""
+        length = int(self._check_index(index)["length"])
+        if not 0 <= start < length:
+            raise IndexError(f"frame {start} out of range for episode {index} of length {length}")
+        count = length - start if count is None else min(count, length - start)
+        path, t0 = self.video_file(index, view)
+        out = decode_video(path, start=t0 + start / self.fps, count=count, fps=self.fps)
+        if out.shape[0] != count:
+            raise DatasetError(f"{path}: expected {count} frames from frame {start}, decoded {out.shape[0]}")
+        return out
+
+    def load(self, index: int, views: list[str] | None = None) -> Episode:
+        """The whole episode: frames of the given views (default all), state, action and labels."""
+        row = self._check_index(index)
+        table = self.frame_table(index)
+        T = table.num_rows
+        cols = set(table.column_names)
+
+        def scalar(name: str, default: Any) -> Any:
+            return table.column(name)[0].as_py() if name in cols and T else row.get(name, default)
+
+        rounds = (
+            np.asarray(table.column("round_index").to_numpy(), dtype=np.int64)
+            if "round_index" in cols
+            else np.zeros(T, dtype=np.int64)
+        )
+        task_index = int(scalar("task_index", 0))
+        return Episode(
+            images={v: self.frames(index, v) for v in (views or list(self.spec.views))},
+            state=list_column(table, STATE_KEY, self.spec.state_dim),
+            action=list_column(table, ACTION_KEY, self.spec.action_dim),
+            task=self.tasks.get(task_index, (row.get("tasks") or [""])[0]),
+            origin=str(scalar("origin", "real")),
+            subtask_index=int(scalar("subtask_index", 0)),
+            checkpoint=str(scalar("checkpoint", "")),
+            seed=int(scalar("seed", 0)),
+            round_index=rounds,
+            extra=json.loads(row["extra"]) if row.get("extra") else {},
+        )

@@ -1,0 +1,110 @@
+"""Encoding and decoding the per-camera videos of the episode store (PyAV).
+
+Three modes; the choice is written into ``meta/info.json`` per video feature, so readers know what
+they are reading. What each costs (measured on the simulated rig's 128×128 frames, see
+``pilworld bench data``):
+
+* ``h264`` (default): H.264, yuv420p, CRF 18. Plays everywhere (browsers, LeRobot, OpenCV). Lossy:
+  chroma is subsampled 2×2 and the encoder quantises, so pixel values change by a few levels
+  (mean absolute error ≈ 1–2 / 255 on rendered scenes, worst pixels on sharp coloured edges) —
+  enough to shift LPIPS/PSNR in the third decimal. Use it for viewing and for training data.
+* ``lossless``: H.264 in RGB (libx264rgb, QP 0, yuv444 equivalent). Bit-exact frames; files are
+  ~5–10× larger than ``h264``; readable by FFmpeg-based decoders (PyAV, torchcodec), not by every
+  browser. Use it wherever image metrics are computed (single-step LPIPS, paired comparisons).
+* ``av1``: AV1 (SVT-AV1), yuv420p, CRF 30: LeRobot's own default; smallest files, slowest to encode,
+  lossy like ``h264``.
+
+Frames are written with presentation timestamps ``i / fps`` (time base ``1/fps``), so frame ``i`` of
+an episode file sits at timestamp ``i / fps`` exactly as LeRobot expects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+from typing import Literal
+
+import av
+import numpy as np
+from numpy.typing import NDArray
+
+VideoMode = Literal["h264", "lossless", "av1"]
+VIDEO_MODES: tuple[VideoMode, ...] = ("h264", "lossless", "av1")
+
+
+@dataclass(frozen=True)
+class CodecSettings:
+    codec: str  # FFmpeg encoder name
+    pix_fmt: str  # pixel format inside the stream
+    options: dict[str, str]
+    lossless: bool
+    info_codec: str  # what LeRobot's info.json calls it ("video.codec")
+
+
+CODECS: dict[VideoMode, CodecSettings] = {
+    "h264": CodecSettings("libx264", "yuv420p", {"crf": "18", "preset": "fast", "g": "30"}, False, "h264"),
+    "lossless": CodecSettings("libx264rgb", "rgb24", {"qp": "0", "preset": "fast", "g": "30"}, True, "h264"),
+    "av1": CodecSettings("libsvtav1", "yuv420p", {"crf": "30", "preset": "8", "g": "30"}, False, "av1"),
+}
+
+
+def codec_settings(mode: str) -> CodecSettings:
+    if mode not in CODECS:
+        raise ValueError(f"video codec mode: expected one of {list(VIDEO_MODES)}, got {mode!r}")
+    return CODECS[mode]  # type: ignore[index]
+
+
+def encode_video(frames: NDArray[np.uint8], path: Path, fps: int, mode: str = "h264") -> None:
+    """Write RGB frames (T, H, W, 3) to ``path`` (an .mp4) with timestamps i / fps.
+
+    Odd widths/heights are not padded here (the store rejects them for 4:2:0 modes up front), so the
+    decoded frames have exactly the stored size.
+    """
+    settings = codec_settings(mode)
+    if frames.dtype != np.uint8 or frames.ndim != 4 or frames.shape[-1] != 3 or frames.shape[0] == 0:
+        raise ValueError(f"frames: expected uint8 (T, H, W, 3) with T > 0, got {frames.dtype} {frames.shape}")
+    _, h, w, _ = frames.shape
+    if settings.pix_fmt == "yuv420p" and (h % 2 or w % 2):
+        raise ValueError(f"frames: {mode} (4:2:0) needs even width and height, got {w}x{h}; use 'lossless'")
+    with av.open(str(path), mode="w", format="mp4") as container:
+        stream = container.add_stream(settings.codec, rate=Fraction(fps, 1))
+        stream.width, stream.height = w, h
+        stream.pix_fmt = settings.pix_fmt
+        stream.options = dict(settings.options)
+        stream.codec_context.time_base = Fraction(1, fps)
+        for i in range(frames.shape[0]):
+            frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frames[i]), format="rgb24")
+            frame.pts = i
+            frame.time_base = Fraction(1, fps)
+            for packet in stream.encode(frame):
+                container.mux(packet)
+        for packet in stream.encode():
+            container.mux(packet)
+
+
+def decode_video(
+    path: Path, *, start: float = 0.0, count: int | None = None, fps: int | None = None
+) -> NDArray[np.uint8]:
+    """Decode RGB frames (N, H, W, 3) of ``path``.
+
+    With ``fps`` given, frames are selected by timestamp: the first at ``start`` seconds (within half
+    a frame), then ``count`` consecutive ones (all remaining if ``None``). Without it, all frames.
+    """
+    if not path.is_file():
+        raise FileNotFoundError(f"video file missing: {path}")
+    frames: list[NDArray[np.uint8]] = []
+    with av.open(str(path)) as container:
+        stream = container.streams.video[0]
+        stream.thread_type = "AUTO"
+        for frame in container.decode(stream):
+            if fps is not None and frame.pts is not None and frame.time_base is not None:
+                t = float(frame.pts * frame.time_base)
+                if t < start - 0.5 / fps:
+                    continue
+            frames.append(frame.to_ndarray(format="rgb24"))
+            if count is not None and len(frames) >= count:
+                break
+    if not frames:
+        raise ValueError(f"{path}: no frames decoded (start={start}, count={count})")
+    return np.stack(frames)

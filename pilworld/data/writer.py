@@ -1,0 +1,267 @@
+"""Appending episodes to a LeRobot v3.0 dataset, one committed episode at a time.
+
+Commit protocol for episode ``e`` (every step is a write-then-rename, see :mod:`pilworld.data.atomic`):
+
+1. its data parquet and one mp4 per view, under file number ``e`` — new files nobody references yet;
+2. ``meta/tasks.parquet`` if the instruction is new (an unused task row is harmless);
+3. the last ``meta/episodes`` file with the new row — **the commit point**: from here on the
+   episode exists for every reader;
+4. ``meta/info.json`` (totals) and ``meta/stats.json`` (aggregated statistics).
+
+A writer killed anywhere leaves every committed episode readable. Opening a writer on an existing
+dataset recovers: files of uncommitted episodes and temporary files are deleted, and info/stats are
+recomputed from the episodes table, so a new writer appends with consistent indices. One writer at a
+time: an exclusive lock on ``meta/.writer.lock`` (released by the kernel if the writer dies).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+from numpy.typing import NDArray
+
+from pilworld.data import layout
+from pilworld.data.atomic import is_temporary, write_json, write_parquet
+from pilworld.data.episode import Episode
+from pilworld.data.reader import DatasetError, EpisodeStore
+from pilworld.data.spec import ACTION_KEY, CODEBASE_VERSION, STATE_KEY, DatasetSpec
+from pilworld.data.stats import aggregate, image_stats, to_jsonable, vector_stats
+from pilworld.data.video_codec import encode_video
+
+
+def _stat_columns(stats: dict[str, dict[str, NDArray[np.float64]]]) -> dict[str, Any]:
+    """Per-episode stats as ``stats/<feature>/<stat>`` columns (nested lists), as LeRobot stores them."""
+    return {f"stats/{feat}/{k}": v.tolist() for feat, s in stats.items() for k, v in s.items()}
+
+
+def _stats_from_row(row: dict[str, Any]) -> dict[str, dict[str, NDArray[np.float64]]]:
+    out: dict[str, dict[str, NDArray[np.float64]]] = {}
+    for key, value in row.items():
+        if key.startswith("stats/") and value is not None:
+            feat, stat = key[len("stats/") :].rsplit("/", 1)
+            out.setdefault(feat, {})[stat] = np.asarray(value, dtype=np.float64)
+    return out
+
+
+class EpisodeWriter:
+    """Create or reopen a dataset and append :class:`Episode` objects to it."""
+
+    def __init__(self, root: str | Path, spec: DatasetSpec | None = None, *, durable: bool = True) -> None:
+        self.root = Path(root)
+        self.durable = durable
+        (self.root / "meta").mkdir(parents=True, exist_ok=True)
+        self._lock_fh = (self.root / layout.LOCK).open("a")
+        try:
+            fcntl.flock(self._lock_fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._lock_fh.close()
+            raise DatasetError(f"{self.root}: another writer holds {layout.LOCK}") from None
+        if (self.root / layout.INFO).is_file():
+            store = EpisodeStore(self.root)
+            if spec is not None and spec != store.spec:
+                self.close()
+                raise DatasetError(f"{self.root}: exists with a different spec ({store.spec}); got {spec}")
+            self.spec = store.spec
+            self._rows = list(store.episodes)
+            self._tasks = {name: idx for idx, name in store.tasks.items()}
+            self._recover()
+        else:
+            if spec is None:
+                self.close()
+                raise DatasetError(f"{self.root}: no dataset here; pass a DatasetSpec to create one")
+            self.spec = spec
+            self._rows = []
+            self._tasks = {}
+            write_json(self.root / layout.PILWORLD, spec.to_json(), durable=durable)
+            self._write_info()
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def __enter__(self) -> EpisodeWriter:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if not self._lock_fh.closed:
+            fcntl.flock(self._lock_fh, fcntl.LOCK_UN)
+            self._lock_fh.close()
+
+    @property
+    def num_episodes(self) -> int:
+        return len(self._rows)
+
+    @property
+    def num_frames(self) -> int:
+        return int(self._rows[-1]["dataset_to_index"]) if self._rows else 0
+
+    # ------------------------------------------------------------------ recovery
+
+    def _recover(self) -> None:
+        """Delete what an interrupted writer left without committing, then rewrite info and stats."""
+        n = len(self._rows)
+        committed = {(int(r["data/chunk_index"]), int(r["data/file_index"])) for r in self._rows}
+        removed = 0
+        for path in list((self.root / "data").glob("chunk-*/file-*.parquet")) + list(
+            (self.root / "videos").glob("*/chunk-*/file-*.mp4")
+        ):
+            c = int(path.parent.name.split("-")[1])
+            f = int(path.stem.split("-")[1])
+            if (c, f) not in committed and c * layout.CHUNKS_SIZE + f >= n:
+                path.unlink()
+                removed += 1
+        for path in self.root.rglob("*"):
+            if path.is_file() and is_temporary(path):
+                path.unlink()
+                removed += 1
+        self.recovered_files = removed
+        self._write_info()
+
+    # ------------------------------------------------------------------ writing
+
+    def _task_index(self, task: str) -> int:
+        if task not in self._tasks:
+            self._tasks[task] = len(self._tasks)
+            names = sorted(self._tasks, key=self._tasks.__getitem__)
+            table = pa.table(
+                {"task_index": pa.array([self._tasks[t] for t in names], pa.int64()), "task": pa.array(names)}
+            )
+            write_parquet(self.root / layout.TASKS, table, durable=self.durable)
+        return self._tasks[task]
+
+    def append(self, episode: Episode) -> int:
+        """Commit one episode; returns its episode index. Raises ``ValueError`` if it does not fit."""
+        episode.check(self.spec)
+        e = len(self._rows)
+        T = episode.length
+        chunk, file = layout.chunk_file(e)
+        first = self.num_frames
+        task_index = self._task_index(episode.task)
+        fps = self.spec.fps
+
+        # 1. files of the new episode
+        table = pa.table(
+            {
+                STATE_KEY: pa.FixedSizeListArray.from_arrays(
+                    pa.array(episode.state.reshape(-1), pa.float32()), self.spec.state_dim
+                ),
+                ACTION_KEY: pa.FixedSizeListArray.from_arrays(
+                    pa.array(episode.action.reshape(-1), pa.float32()), self.spec.action_dim
+                ),
+                "timestamp": pa.array(np.arange(T, dtype=np.float32) / np.float32(fps), pa.float32()),
+                "frame_index": pa.array(np.arange(T), pa.int64()),
+                "episode_index": pa.array(np.full(T, e), pa.int64()),
+                "index": pa.array(np.arange(first, first + T), pa.int64()),
+                "task_index": pa.array(np.full(T, task_index), pa.int64()),
+                "origin": pa.array([episode.origin] * T, pa.string()),
+                "subtask_index": pa.array(np.full(T, int(episode.subtask_index)), pa.int64()),
+                "round_index": pa.array(episode.rounds().astype(np.int64), pa.int64()),
+                "checkpoint": pa.array([episode.checkpoint] * T, pa.string()),
+                "seed": pa.array(np.full(T, int(episode.seed)), pa.int64()),
+            }
+        )
+        write_parquet(layout.data_path(self.root, chunk, file), table, durable=self.durable)
+        stats: dict[str, dict[str, NDArray[np.float64]]] = {
+            STATE_KEY: vector_stats(episode.state),
+            ACTION_KEY: vector_stats(episode.action),
+        }
+        row: dict[str, Any] = {
+            "episode_index": e,
+            "tasks": [episode.task],
+            "length": T,
+            "data/chunk_index": chunk,
+            "data/file_index": file,
+            "dataset_from_index": first,
+            "dataset_to_index": first + T,
+        }
+        for view in self.spec.views:
+            key = self.spec.video_key(view)
+            path = layout.video_path(self.root, key, chunk, file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}")
+            try:
+                encode_video(episode.images[view], tmp, fps, self.spec.video_mode)
+                if self.durable:
+                    with tmp.open("rb") as fh:
+                        os.fsync(fh.fileno())
+                os.replace(tmp, path)
+            finally:
+                tmp.unlink(missing_ok=True)
+            stats[key] = image_stats(episode.images[view])
+            row.update(
+                {
+                    f"videos/{key}/chunk_index": chunk,
+                    f"videos/{key}/file_index": file,
+                    f"videos/{key}/from_timestamp": 0.0,
+                    f"videos/{key}/to_timestamp": T / fps,
+                }
+            )
+        for name, values in (
+            ("timestamp", table.column("timestamp").to_numpy()),
+            ("frame_index", table.column("frame_index").to_numpy()),
+            ("episode_index", table.column("episode_index").to_numpy()),
+            ("index", table.column("index").to_numpy()),
+            ("task_index", table.column("task_index").to_numpy()),
+        ):
+            stats[name] = vector_stats(values)
+        meta_number = e // layout.EPISODES_PER_META_FILE
+        meta_chunk, meta_file = layout.chunk_file(meta_number)
+        row["meta/episodes/chunk_index"] = meta_chunk
+        row["meta/episodes/file_index"] = meta_file
+        row.update(_stat_columns(stats))
+        # Our per-episode labels, for `pilworld data info` without reading every data file.
+        row.update(
+            {
+                "origin": episode.origin,
+                "subtask_index": int(episode.subtask_index),
+                "checkpoint": episode.checkpoint,
+                "seed": int(episode.seed),
+                "extra": json.dumps(episode.extra, sort_keys=True) if episode.extra else "",
+            }
+        )
+
+        # 2–3. the commit point: rewrite the last episodes file with the new row
+        rows = [*self._rows, row]
+        in_file = [r for r in rows if int(r["episode_index"]) // layout.EPISODES_PER_META_FILE == meta_number]
+        write_parquet(
+            layout.episodes_meta_path(self.root, meta_number), pa.Table.from_pylist(in_file), durable=self.durable
+        )
+        self._rows = rows
+
+        # 4. totals and statistics
+        self._write_info()
+        return e
+
+    def _write_info(self) -> None:
+        n = len(self._rows)
+        info = {
+            "codebase_version": CODEBASE_VERSION,
+            "robot_type": self.spec.robot_type,
+            "total_episodes": n,
+            "total_frames": self.num_frames,
+            "total_tasks": len(self._tasks),
+            "chunks_size": layout.CHUNKS_SIZE,
+            "data_files_size_in_mb": 100,
+            "video_files_size_in_mb": 200,
+            "fps": self.spec.fps,
+            "splits": {"train": f"0:{n}"} if n else {},
+            "data_path": layout.DATA_PATH,
+            "video_path": layout.VIDEO_PATH,
+            "features": self.spec.features(),
+        }
+        write_json(self.root / layout.INFO, info, durable=self.durable)
+        if n:
+            per_episode = [_stats_from_row(r) for r in self._rows]
+            feats = sorted(set().union(*per_episode))
+            agg = {f: aggregate([s[f] for s in per_episode if f in s]) for f in feats}
+            write_json(self.root / layout.STATS, to_jsonable(agg), durable=self.durable)
