@@ -27,7 +27,7 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def atomic_write(path: Path, write: Callable[[Path], None], *, durable: bool = True) -> None:
+def atomic_write(path: Path, write: Callable[[Path], object], *, durable: bool = True) -> None:
     """Call ``write(tmp_path)``, then move the finished file to ``path``."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{path.name}{TMP_MARK}{os.getpid()}")
@@ -36,7 +36,7 @@ def atomic_write(path: Path, write: Callable[[Path], None], *, durable: bool = T
         if durable:
             with tmp.open("rb") as fh:
                 os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
     if durable:

@@ -52,7 +52,7 @@ CODECS: dict[VideoMode, CodecSettings] = {
 def codec_settings(mode: str) -> CodecSettings:
     if mode not in CODECS:
         raise ValueError(f"video codec mode: expected one of {list(VIDEO_MODES)}, got {mode!r}")
-    return CODECS[mode]  # type: ignore[index]
+    return CODECS[mode]
 
 
 def encode_video(frames: NDArray[np.uint8], path: Path, fps: int, mode: str = "h264") -> None:
@@ -69,6 +69,7 @@ def encode_video(frames: NDArray[np.uint8], path: Path, fps: int, mode: str = "h
         raise ValueError(f"frames: {mode} (4:2:0) needs even width and height, got {w}x{h}; use 'lossless'")
     with av.open(str(path), mode="w", format="mp4") as container:
         stream = container.add_stream(settings.codec, rate=Fraction(fps, 1))
+        assert isinstance(stream, av.VideoStream)  # a video codec name always gives a video stream
         stream.width, stream.height = w, h
         stream.pix_fmt = settings.pix_fmt
         stream.options = dict(settings.options)
@@ -102,7 +103,7 @@ def decode_video(
                 t = float(frame.pts * frame.time_base)
                 if t < start - 0.5 / fps:
                     continue
-            frames.append(frame.to_ndarray(format="rgb24"))
+            frames.append(np.asarray(frame.to_ndarray(format="rgb24"), dtype=np.uint8))
             if count is not None and len(frames) >= count:
                 break
     if not frames:

@@ -194,7 +194,7 @@ class EpisodeWriter:
                 if self.durable:
                     with tmp.open("rb") as fh:
                         os.fsync(fh.fileno())
-                os.replace(tmp, path)
+                tmp.replace(path)
             finally:
                 tmp.unlink(missing_ok=True)
             stats[key] = image_stats(episode.images[view])
