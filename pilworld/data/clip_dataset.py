@@ -179,4 +179,4 @@ class ClipDataset(Dataset[dict[str, Any]]):
         """A sampler drawing clips with the given success/failure mix (see :func:`mix_weights`)."""
         weights = mix_weights(self.clip_success(), success_fraction)
         gen = torch.Generator().manual_seed(seed)
-        return WeightedRandomSampler(torch.from_numpy(weights), num_samples, replacement=True, generator=gen)
+        return WeightedRandomSampler(weights.tolist(), num_samples, replacement=True, generator=gen)

@@ -105,4 +105,5 @@ def mix_weights(success: NDArray[np.int8], success_fraction: float | None) -> ND
             raise ValueError(f"success_fraction={success_fraction}: the dataset has no clips from {kind} episodes")
         if mask.any():
             w[mask] = labelled * share / mask.sum()
-    return w / w.sum()
+    out: NDArray[np.float64] = w / w.sum()
+    return out
