@@ -33,6 +33,14 @@ def register(sub: Any) -> None:
     cv.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     cv.set_defaults(handler=_control_video)
 
+    dt = benches.add_parser("data", help="episode store write/read frames per second and clip loader rate")
+    dt.add_argument("--episodes", type=int, default=6, help="synthetic episodes (default 6)")
+    dt.add_argument("--length", type=int, default=300, help="frames per episode (default 300)")
+    dt.add_argument("--size", type=int, default=128, help="image side in pixels, 3 views (default 128)")
+    dt.add_argument("--video-mode", default="h264", choices=["h264", "lossless", "av1"])
+    dt.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    dt.set_defaults(handler=_data)
+
 
 def _control_video(args: argparse.Namespace) -> int:
     from pilworld.bench.control_video import run_control_video_bench
@@ -51,6 +59,22 @@ def _control_video(args: argparse.Namespace) -> int:
     print(
         f"control-video: {result['frames_per_s']:.0f} frames/s ({result['image_size'][0]}x{result['image_size'][1]}, "
         f"K={result['K']}), {result['ms_per_chunk_single_p50']:.3f} ms per single chunk"
+    )
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def _data(args: argparse.Namespace) -> int:
+    from pilworld.bench.data import run_data_bench
+
+    result = run_data_bench(
+        episodes=args.episodes, length=args.length, size=args.size, video_mode=args.video_mode, progress=not args.json
+    )
+    print(
+        f"data ({result['video_mode']}, 3 views at {args.size}x{args.size}): write {result['write_frames_per_s']:.0f} "
+        f"frames/s, read {result['read_frames_per_s']:.0f} frames/s, clips {result['clips_per_s']:.0f}/s "
+        f"({result['clips_per_s_cold']:.0f}/s while decoding)"
     )
     if args.json:
         print(json.dumps(result))

@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, control_video
+from pilworld.cli import bench, control_video, data
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -25,6 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     control_video.register(sub)
+    data.register(sub)
     bench.register(sub)
     return parser
 

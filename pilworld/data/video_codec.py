@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Literal
 
 import av
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -84,28 +85,68 @@ def encode_video(frames: NDArray[np.uint8], path: Path, fps: int, mode: str = "h
             container.mux(packet)
 
 
-def decode_video(
-    path: Path, *, start: float = 0.0, count: int | None = None, fps: int | None = None
-) -> NDArray[np.uint8]:
-    """Decode RGB frames (N, H, W, 3) of ``path``.
+def resize_image(image: NDArray[np.uint8], size: tuple[int, int] | None) -> NDArray[np.uint8]:
+    """``image`` (H, W, 3) at ``size`` = (height, width) with INTER_AREA (no-op when already that size)."""
+    if size is None or image.shape[:2] == size:
+        return image
+    h, w = size
+    # INTER_AREA averages the source pixels under each output pixel: no aliasing when shrinking.
+    return np.asarray(cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA), dtype=np.uint8)
 
-    With ``fps`` given, frames are selected by timestamp: the first at ``start`` seconds (within half
-    a frame), then ``count`` consecutive ones (all remaining if ``None``). Without it, all frames.
+
+def decode_video(
+    path: Path,
+    *,
+    start: float = 0.0,
+    count: int | None = None,
+    fps: int | None = None,
+    size: tuple[int, int] | None = None,
+) -> NDArray[np.uint8]:
+    """RGB frames (N, H, W, 3) of ``path``: ``count`` consecutive ones (all if ``None``) from ``start``.
+
+    Frames are selected by presentation timestamp, as LeRobot does (v2.1: each episode's file starts at
+    0; v3.0: episodes may share a file from ``from_timestamp``): the first is the one at ``start``
+    seconds within half a frame (``fps`` required when ``start`` > 0). The decoder first seeks to the key
+    frame before ``start``, so reading a late episode of a packed file does not decode the earlier ones.
+    Each frame is resized to ``size`` = (height, width) as it is decoded, so a 720p source is never held
+    at full size. Raises ``ValueError`` naming the file when fewer than ``count`` frames are there.
     """
     if not path.is_file():
-        raise FileNotFoundError(f"video file missing: {path}")
+        raise ValueError(f"{path}: video file missing")
+    if start > 0 and fps is None:
+        raise ValueError("decode_video: fps is needed to select frames from a start time")
+    out: NDArray[np.uint8] | None = None
     frames: list[NDArray[np.uint8]] = []
+    n = 0
     with av.open(str(path)) as container:
         stream = container.streams.video[0]
-        stream.thread_type = "AUTO"
+        if start > 0 and stream.time_base is not None:
+            container.seek(int(start / stream.time_base), stream=stream, backward=True, any_frame=False)
         for frame in container.decode(stream):
-            if fps is not None and frame.pts is not None and frame.time_base is not None:
-                t = float(frame.pts * frame.time_base)
-                if t < start - 0.5 / fps:
-                    continue
-            frames.append(np.asarray(frame.to_ndarray(format="rgb24"), dtype=np.uint8))
-            if count is not None and len(frames) >= count:
+            pts, time_base = frame.pts, frame.time_base
+            if (
+                fps is not None
+                and pts is not None
+                and time_base is not None
+                and float(pts * time_base) < start - 0.5 / fps
+            ):
+                continue  # before `start`: the seek lands on the key frame preceding it
+            image = resize_image(np.asarray(frame.to_ndarray(format="rgb24"), dtype=np.uint8), size)
+            if count is None:
+                frames.append(image)
+                continue
+            if out is None:
+                out = np.empty((count, *image.shape), dtype=np.uint8)
+            if image.shape != out.shape[1:]:
+                raise ValueError(f"{path}: frame {n} is {image.shape[:2]}, earlier frames {out.shape[1:3]}")
+            out[n] = image
+            n += 1
+            if n == count:
                 break
-    if not frames:
-        raise ValueError(f"{path}: no frames decoded (start={start}, count={count})")
-    return np.stack(frames)
+    if count is None:
+        if not frames:
+            raise ValueError(f"{path}: no frames decoded from {start:.3f} s")
+        return np.stack(frames)
+    if out is None or n < count:
+        raise ValueError(f"{path}: expected {count} frames from {start:.3f} s, decoded {n}")
+    return out

@@ -63,10 +63,17 @@ class EpisodeWriter:
         except BlockingIOError:
             self._lock_fh.close()
             raise DatasetError(f"{self.root}: another writer holds {layout.LOCK}") from None
+        self.recovered_files = 0
+        try:
+            self._open(spec)
+        except BaseException:
+            self.close()  # never leave the lock held by a writer that failed to open
+            raise
+
+    def _open(self, spec: DatasetSpec | None) -> None:
         if (self.root / layout.INFO).is_file():
             store = EpisodeStore(self.root)
             if spec is not None and spec != store.spec:
-                self.close()
                 raise DatasetError(f"{self.root}: exists with a different spec ({store.spec}); got {spec}")
             self.spec = store.spec
             self._rows = list(store.episodes)
@@ -74,12 +81,11 @@ class EpisodeWriter:
             self._recover()
         else:
             if spec is None:
-                self.close()
                 raise DatasetError(f"{self.root}: no dataset here; pass a DatasetSpec to create one")
             self.spec = spec
             self._rows = []
             self._tasks = {}
-            write_json(self.root / layout.PILWORLD, spec.to_json(), durable=durable)
+            write_json(self.root / layout.PILWORLD, spec.to_json(), durable=self.durable)
             self._write_info()
 
     # ------------------------------------------------------------------ lifecycle

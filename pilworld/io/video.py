@@ -14,6 +14,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from pilworld.data.video_codec import decode_video
+
 VIDEO_SUFFIXES = (".mp4",)
 IMAGE_SUFFIXES = (".png",)
 
@@ -52,14 +54,7 @@ def write_mp4(frames: NDArray[np.uint8], path: str | Path, fps: float = 10.0, cr
 
 def read_video(path: str | Path) -> NDArray[np.uint8]:
     """Decode every frame of a video file as RGB (N, H, W, 3)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"video not found: {path}")
-    with av.open(str(path)) as container:
-        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
-    if not frames:
-        raise ValueError(f"{path}: contains no video frames")
-    return np.stack(frames)
+    return decode_video(Path(path))
 
 
 def contact_sheet(frames: NDArray[np.uint8], columns: int = 5, gap: int = 2) -> NDArray[np.uint8]:

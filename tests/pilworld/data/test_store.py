@@ -20,7 +20,8 @@ from .conftest import VIEWS, make_episode
 SPEC = {"views": {v: (32, 48) for v in VIEWS}}
 
 
-# Stated tolerances for the lossy modes on smooth content: mean |error| < 2 levels, PSNR > 38 dB (the YUV 4:2:0 conversion alone costs ~1.5).
+# Stated tolerances for the lossy modes on smooth content: mean |error| < 2 levels, PSNR > 38 dB
+# (the YUV 4:2:0 conversion alone costs ~1.5 levels).
 @pytest.mark.parametrize("mode", ["lossless", "h264", "av1"])
 def test_round_trip(tmp_path: Path, episodes: list[Episode], mode: str) -> None:
     with EpisodeWriter(tmp_path / "ds", DatasetSpec(video_mode=mode, **SPEC)) as w:  # type: ignore[arg-type]
