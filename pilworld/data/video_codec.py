@@ -1,18 +1,26 @@
 """Encoding and decoding the per-camera videos of the episode store (PyAV).
 
 Three modes; the choice is written into ``meta/info.json`` per video feature, so readers know what
-they are reading. What each costs (measured on the simulated rig's 128×128 frames, see
-``pilworld bench data``):
+they are reading. What each costs, measured by ``pilworld bench data`` (3 views at 128×128,
+scene-like frames; bytes are per 3-view frame):
+
+===========  ===============  ============  ===========  ==============================================
+mode         bytes per frame  write fps     read fps     pixels
+===========  ===============  ============  ===========  ==============================================
+``h264``     ~590             ~400          ~750–900     mean |error| ≈ 1.5 levels, worst ~130 on
+                                                         sharp saturated edges (4:2:0 chroma)
+``lossless`` ~1,230 (2.1×)    ~460          ~850         bit-exact
+``av1``      ~425 (0.7×)      ~380          ~1,180       like h264, worst ~150
+===========  ===============  ============  ===========  ==============================================
 
 * ``h264`` (default): H.264, yuv420p, CRF 18. Plays everywhere (browsers, LeRobot, OpenCV). Lossy:
-  chroma is subsampled 2×2 and the encoder quantises, so pixel values change by a few levels
-  (mean absolute error ≈ 1–2 / 255 on rendered scenes, worst pixels on sharp coloured edges) —
-  enough to shift LPIPS/PSNR in the third decimal. Use it for viewing and for training data.
-* ``lossless``: H.264 in RGB (libx264rgb, QP 0, yuv444 equivalent). Bit-exact frames; files are
-  ~5–10× larger than ``h264``; readable by FFmpeg-based decoders (PyAV, torchcodec), not by every
-  browser. Use it wherever image metrics are computed (single-step LPIPS, paired comparisons).
-* ``av1``: AV1 (SVT-AV1), yuv420p, CRF 30: LeRobot's own default; smallest files, slowest to encode,
-  lossy like ``h264``.
+  the RGB→YUV conversion alone moves pixels by ~1.5 levels and chroma is subsampled 2×2, which
+  shifts image metrics (PSNR, LPIPS) in the second or third decimal. Use it for viewing and training.
+* ``lossless``: H.264 in RGB (libx264rgb, QP 0). Bit-exact frames at about twice the size on
+  smooth scenes (up to ~5× on textured ones); FFmpeg-based decoders (PyAV, torchcodec, LeRobot) read
+  it, browsers mostly do not. Use it wherever image metrics are computed (single-step LPIPS, paired
+  real/imagined comparisons).
+* ``av1``: AV1 (SVT-AV1), yuv420p, CRF 30: LeRobot's own default; smallest files, lossy like ``h264``.
 
 Frames are written with presentation timestamps ``i / fps`` (time base ``1/fps``), so frame ``i`` of
 an episode file sits at timestamp ``i / fps`` exactly as LeRobot expects.
