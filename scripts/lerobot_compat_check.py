@@ -6,8 +6,17 @@ Standalone: run it with the interpreter of the LeRobot virtualenv made by
 interpreter; it does not import pilworld.
 
     /work/lerobot-venv/bin/python scripts/lerobot_compat_check.py /path/to/dataset_root \
-        [--compare-npz expected.npz] [--image-atol 0] [--state-atol 0] [--action-atol 0] \
-        [--video-backend auto|torchcodec|pyav] [--samples 0,10,-1] [--max-frames N]
+        [--compare-npz expected.npz] [--image-atol 0] [--image-mean-atol X] [--state-atol 0] \
+        [--action-atol 0] [--delta-check] [--video-backend auto|torchcodec|pyav] \
+        [--samples 0,10,-1] [--max-frames N]
+
+Runs fully offline (sets HF_HUB_OFFLINE / HF_DATASETS_OFFLINE before importing LeRobot) and points
+HF_DATASETS_CACHE at a temporary directory (removed at exit) unless --datasets-cache is given.
+--video-backend auto uses torchcodec (LeRobot's default) when it can load system FFmpeg, else pyav.
+--delta-check reloads with delta_timestamps (as LeRobot training does) and checks chunk values and
+*_is_pad masks at episode boundaries. Images also get an alignment check: the run fails when most
+decoded frames match the neighbouring expected frame better than their own (an off-by-one).
+See docs/lerobot_v30_notes.md for the format and what LeRobot 0.4.4 requires.
 
 The last line printed on stdout is one JSON object (the summary). Exit codes:
 0 = loaded (and, with --compare-npz, everything within tolerance);
@@ -52,9 +61,22 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--samples", default=None, help="comma-separated frame indices to summarise (negative ok)")
     p.add_argument("--compare-npz", type=Path, default=None)
     p.add_argument("--image-atol", type=float, default=0.0, help="max abs diff allowed on uint8 pixels")
+    p.add_argument(
+        "--image-mean-atol",
+        type=float,
+        default=None,
+        help="optional: also fail when a frame's MEAN abs pixel diff exceeds this (useful for lossy codecs, "
+        "together with a loose --image-atol)",
+    )
     p.add_argument("--state-atol", type=float, default=0.0)
     p.add_argument("--action-atol", type=float, default=0.0)
     p.add_argument("--max-frames", type=int, default=None, help="compare only the first N frames")
+    p.add_argument(
+        "--delta-check",
+        action="store_true",
+        help="also load with delta_timestamps (action chunk 0..4 frames, state/first camera -1..0 frame), as "
+        "LeRobot training does, and check values and *_is_pad masks at episode boundaries",
+    )
     p.add_argument(
         "--no-alignment-check",
         action="store_true",
@@ -190,10 +212,13 @@ def _run(args: argparse.Namespace, summary: dict) -> int:
     if args.samples:
         idxs = [int(s) for s in args.samples.split(",") if s.strip()]
     else:
-        idxs = [0]
-        for ep in range(meta.total_episodes):
-            e = meta.episodes[ep]
-            idxs += [int(e["dataset_from_index"]), int(e["dataset_to_index"]) - 1]
+        idxs = [0, n - 1]
+        try:
+            for ep in range(meta.total_episodes):
+                e = meta.episodes[ep]
+                idxs += [int(e["dataset_from_index"]), int(e["dataset_to_index"]) - 1]
+        except KeyError as e:  # dataset_from_index/to_index missing: LeRobot's delta_timestamps would fail
+            summary.setdefault("warnings", []).append(f"episodes metadata lacks {e}")
         idxs = idxs[:8]
     idxs = sorted({i % n for i in idxs}) if n else []
     samples = []
@@ -208,9 +233,70 @@ def _run(args: argparse.Namespace, summary: dict) -> int:
         summary["compare"] = cmp
         if not cmp["ok"]:
             rc = 1
+    if args.delta_check:
+        dc = _delta_check(ds, repo_id, root, backend, args)
+        summary["delta_check"] = dc
+        if not dc["ok"]:
+            rc = 1
     summary["ok"] = rc == 0
     print(json.dumps(summary, default=str))
     return rc
+
+
+def _delta_check(ds, repo_id, root, backend, args) -> dict:
+    """Load again with delta_timestamps and check chunks + padding at episode boundaries."""
+    import numpy as np
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    meta = ds.meta
+    fps = ds.fps
+    vkeys = list(meta.video_keys)
+    dts = {"action": [i / fps for i in range(5)], "observation.state": [-1 / fps, 0.0]}
+    if vkeys:
+        dts[vkeys[0]] = [-1 / fps, 0.0]
+    dts = {k: v for k, v in dts.items() if k in meta.features}
+    res: dict = {"ok": True, "delta_timestamps": dts, "checked": [], "problems": []}
+    dsd = LeRobotDataset(repo_id, root=root, video_backend=backend, tolerance_s=args.tolerance_s, delta_timestamps=dts)
+    ep_col = np.array([int(x) for x in dsd.hf_dataset["episode_index"]])
+    n = len(ep_col)
+    starts = [i for i in range(n) if i == 0 or ep_col[i] != ep_col[i - 1]]
+    ends = [i for i in range(n) if i == n - 1 or ep_col[i] != ep_col[i + 1]]
+    bounds = {int(ep_col[s]): (s, e + 1) for s, e in zip(starts, ends, strict=True)}
+    idxs = sorted({i for s, e in bounds.values() for i in (s, min(s + 1, e - 1), max(e - 2, s), e - 1)})[:24]
+    exp = np.load(args.compare_npz) if args.compare_npz is not None else None
+    npz_key = {"action": "action", "observation.state": "state"}
+    if vkeys:
+        npz_key[vkeys[0]] = "images." + vkeys[0][len("observation.images.") :]
+    for i in idxs:
+        item = dsd[i]
+        s, e = bounds[int(ep_col[i])]
+        for key, deltas in dts.items():
+            steps = [round(d * fps) for d in deltas]
+            want_pad = [not (s <= i + d < e) for d in steps]
+            got_pad = [bool(x) for x in item[f"{key}_is_pad"].tolist()]
+            if got_pad != want_pad:
+                res["problems"].append(f"[{i}] {key}_is_pad {got_pad} != expected {want_pad}")
+            val = item[key]
+            if val.shape[0] != len(steps):
+                res["problems"].append(f"[{i}] {key} leading dim {val.shape[0]} != {len(steps)}")
+                continue
+            nk = npz_key.get(key)
+            if exp is not None and nk in exp.files:
+                for t, d in enumerate(steps):
+                    j = min(max(i + d, s), e - 1)
+                    if key in vkeys:
+                        g = _image_to_uint8_hwc(val[t]).astype(np.int16)
+                        diff = float(np.abs(g - exp[nk][j].astype(np.int16)).max())
+                        tol = args.image_atol
+                    else:
+                        diff = float(np.abs(val[t].numpy().astype(np.float64) - exp[nk][j].astype(np.float64)).max())
+                        tol = args.action_atol if key == "action" else args.state_atol
+                    if diff > tol:
+                        res["problems"].append(f"[{i}] {key}[{t}] (frame {j}) max abs diff {diff} > {tol}")
+        res["checked"].append(i)
+    res["ok"] = not res["problems"]
+    res["problems"] = res["problems"][:20]
+    return res
 
 
 def _compare(ds, args) -> dict:
@@ -294,6 +380,9 @@ def _compare(ds, args) -> dict:
                         if mad_j < mad:
                             a["closer_to_neighbour"] += 1
                             break
+                a["max_frame_mean_abs_diff"] = max(a.get("max_frame_mean_abs_diff", 0.0), mad)
+                if args.image_mean_atol is not None and mad > args.image_mean_atol and a["first_bad_index"] is None:
+                    a["first_bad_index"] = i
             else:
                 g = got.detach().cpu().numpy() if isinstance(got, torch.Tensor) else np.asarray(got)
                 g = np.asarray(g, dtype=np.float64).reshape(-1)
@@ -327,6 +416,8 @@ def _compare(ds, args) -> dict:
                 # frames whose decoded image matches expected frame i-1 or i+1 better than frame i:
                 # a sign of an off-by-one in timestamps / from_timestamp (fails the check)
                 entry["frames_closer_to_neighbour"] = a["closer_to_neighbour"]
+                entry["max_frame_mean_abs_diff"] = a.get("max_frame_mean_abs_diff")
+                entry["mean_atol"] = args.image_mean_atol
                 # lossy codecs can make a few frames look more like a neighbour; only a systematic
                 # shift (more than half of the frames) fails the check
                 if not args.no_alignment_check and a["count"] >= 2 and a["closer_to_neighbour"] * 2 > a["count"]:

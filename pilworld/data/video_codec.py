@@ -52,8 +52,10 @@ class CodecSettings:
 
 
 CODECS: dict[VideoMode, CodecSettings] = {
-    "h264": CodecSettings("libx264", "yuv420p", {"crf": "18", "preset": "fast", "g": "30"}, False, "h264"),
-    "lossless": CodecSettings("libx264rgb", "rgb24", {"qp": "0", "preset": "fast", "g": "30"}, True, "h264"),
+    "h264": CodecSettings("libx264", "yuv420p", {"crf": "18", "preset": "fast", "g": "30", "bf": "0"}, False, "h264"),
+    # No B-frames in the H.264 modes: timestamps then start at 0 with no reordering offset, which is what
+    # LeRobot's torchcodec lookup (frame = round(t · fps)) assumes.
+    "lossless": CodecSettings("libx264rgb", "rgb24", {"qp": "0", "preset": "fast", "g": "30", "bf": "0"}, True, "h264"),
     "av1": CodecSettings("libsvtav1", "yuv420p", {"crf": "30", "preset": "8", "g": "30"}, False, "av1"),
 }
 

@@ -50,6 +50,38 @@ def _stats_from_row(row: dict[str, Any]) -> dict[str, dict[str, NDArray[np.float
     return out
 
 
+def tasks_table(names: list[str]) -> pa.Table:
+    """``meta/tasks.parquet`` as LeRobot reads it: row i is task_index i, the task string is the *pandas
+    index* (LeRobot looks a task up as ``tasks.iloc[task_index].name``), so the pandas metadata that
+    ``DataFrame.to_parquet`` would write is added by hand (no pandas dependency)."""
+    table = pa.table(
+        {"task_index": pa.array(range(len(names)), pa.int64()), "__index_level_0__": pa.array(names, pa.string())}
+    )
+    pandas_md = {
+        "index_columns": ["__index_level_0__"],
+        "column_indexes": [],
+        "columns": [
+            {
+                "name": "task_index",
+                "field_name": "task_index",
+                "pandas_type": "int64",
+                "numpy_type": "int64",
+                "metadata": None,
+            },
+            {
+                "name": None,
+                "field_name": "__index_level_0__",
+                "pandas_type": "unicode",
+                "numpy_type": "object",
+                "metadata": None,
+            },
+        ],
+        "creator": {"library": "pyarrow", "version": pa.__version__},
+        "pandas_version": "2.2.0",
+    }
+    return table.replace_schema_metadata({b"pandas": json.dumps(pandas_md).encode()})
+
+
 class EpisodeWriter:
     """Create or reopen a dataset and append :class:`Episode` objects to it."""
 
@@ -139,10 +171,7 @@ class EpisodeWriter:
         if task not in self._tasks:
             self._tasks[task] = len(self._tasks)
             names = sorted(self._tasks, key=self._tasks.__getitem__)
-            table = pa.table(
-                {"task_index": pa.array([self._tasks[t] for t in names], pa.int64()), "task": pa.array(names)}
-            )
-            write_parquet(self.root / layout.TASKS, table, durable=self.durable)
+            write_parquet(self.root / layout.TASKS, tasks_table(names), durable=self.durable)
         return self._tasks[task]
 
     def append(self, episode: Episode) -> int:

@@ -71,6 +71,10 @@ def test_layout_and_metadata(tmp_path: Path, episodes: list[Episode]) -> None:
     rows = pq.read_table(root / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
     assert [r["dataset_from_index"] for r in rows] == [0, episodes[0].length, episodes[0].length + episodes[1].length]
     assert rows[2]["videos/observation.images.cam_left_wrist/file_index"] == 2
+    # LeRobot reads the task as the pandas index of tasks.parquet (row = task_index).
+    tasks = pq.read_table(root / layout.TASKS)
+    assert tasks.schema.pandas_metadata["index_columns"] == ["__index_level_0__"]
+    assert tasks.column("__index_level_0__").to_pylist() == [episodes[0].task, episodes[1].task]
     stats = json.loads((root / layout.STATS).read_text())
     all_state = np.concatenate([e.state for e in episodes])
     np.testing.assert_allclose(stats["observation.state"]["mean"], all_state.mean(axis=0), atol=1e-6)
