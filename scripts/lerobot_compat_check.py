@@ -2,10 +2,10 @@
 """Load a LeRobot v3.0 dataset with LeRobot's own ``LeRobotDataset`` (offline) and summarise it.
 
 Standalone: run it with the interpreter of the LeRobot virtualenv made by
-``scripts/setup_lerobot_venv.sh`` (default /work/lerobot-venv), never with the project's
+``scripts/setup_lerobot_venv.sh`` (default .venv-lerobot), never with the project's
 interpreter; it does not import pilworld.
 
-    /work/lerobot-venv/bin/python scripts/lerobot_compat_check.py /path/to/dataset_root \
+    .venv-lerobot/bin/python scripts/lerobot_compat_check.py /path/to/dataset_root \
         [--compare-npz expected.npz] [--image-atol 0] [--image-mean-atol X] [--state-atol 0] \
         [--action-atol 0] [--delta-check] [--video-backend auto|torchcodec|pyav] \
         [--samples 0,10,-1] [--max-frames N]
