@@ -27,7 +27,10 @@ fi
 
 if [ ! -x "$VENV/bin/python" ]; then
   log "creating virtual environment in $VENV"
-  "$PY" -m venv "$VENV"
+  if ! "$PY" -m venv "$VENV"; then
+    log "error: '$PY -m venv' failed; on Debian/Ubuntu install the venv module (apt-get install python3-venv)"
+    exit 1
+  fi
 fi
 
 stamp="$VENV/.pilworld-install"

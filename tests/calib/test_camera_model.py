@@ -16,33 +16,10 @@ import yaml
 from calib.camera_model import FORMAT, NEAR_Z, CameraModel
 from calib.distortion import distort_normalized, undistort_normalized
 
+from .coefficients import REALISTIC, random_dist
+
 K0 = np.array([[612.3, 0.0, 318.7], [0.0, 609.8, 241.2], [0.0, 0.0, 1.0]])
 W, H = 640, 480
-
-# Realistic OpenCV coefficient sets (OpenCV order), one per allowed count.
-REALISTIC = {
-    0: [],
-    4: [-0.21, 0.045, 8e-4, -5e-4],
-    5: [-0.28, 0.071, 1.2e-4, -3.1e-4, -0.0062],
-    8: [2.31, -0.42, 2e-4, -1e-4, -0.06, 2.62, 0.31, -0.09],
-    12: [-0.25, 0.06, 3e-4, 2e-4, -0.004, 0.01, -0.02, 0.003, 1.1e-3, -2e-4, -8e-4, 1e-4],
-    14: [-0.25, 0.06, 3e-4, 2e-4, -0.004, 0.01, -0.02, 0.003, 1.1e-3, -2e-4, -8e-4, 1e-4, 0.012, -0.008],
-}
-
-
-def random_dist(rng: np.random.Generator, n: int) -> np.ndarray:
-    """Random but realistic OpenCV coefficients (first ``n`` of k1 k2 p1 p2 k3 k4 k5 k6 s1..s4 τx τy)."""
-    full = np.concatenate(
-        [
-            [rng.uniform(-0.4, 0.15), rng.uniform(-0.1, 0.25)],
-            rng.uniform(-1e-3, 1e-3, 2),
-            [rng.uniform(-0.05, 0.05)],
-            rng.uniform(-0.15, 0.3, 3),
-            rng.uniform(-2e-3, 2e-3, 4),
-            rng.uniform(-0.03, 0.03, 2),
-        ]
-    )
-    return full[:n]
 
 
 def random_rigid(rng: np.random.Generator) -> np.ndarray:
