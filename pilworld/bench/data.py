@@ -19,6 +19,7 @@ from tqdm import tqdm
 from pilworld.bench.common import machine_info
 from pilworld.data.clip_dataset import ClipDataset
 from pilworld.data.episode import Episode
+from pilworld.data.info import disk_bytes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.spec import DatasetSpec
 from pilworld.data.writer import EpisodeWriter
@@ -82,7 +83,7 @@ def run_data_bench(
         for i in order:
             warm_clips[int(i)]
         warm_s = time.perf_counter() - t0
-        disk = sum(p.stat().st_size for p in root.rglob("*") if p.is_file())
+        disk = disk_bytes(root)
 
     return {
         "benchmark": "data",

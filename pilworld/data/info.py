@@ -10,7 +10,8 @@ from pilworld.data.outcomes import read_outcomes, summarize
 from pilworld.data.reader import EpisodeStore
 
 
-def _disk_bytes(root: Path) -> int:
+def disk_bytes(root: Path) -> int:
+    """Bytes of every file under ``root``."""
     return sum(p.stat().st_size for p in root.rglob("*") if p.is_file())
 
 
@@ -43,5 +44,5 @@ def dataset_info(root: str | Path) -> dict[str, Any]:
         "by_origin": {o: {"episodes": origin_eps[o], "frames": origin_frames[o]} for o in sorted(origin_eps)},
         "checkpoints": dict(sorted(checkpoints.items())),
         "outcomes": summarize(read_outcomes(store.root)),
-        "disk_mb": round(_disk_bytes(store.root) / 2**20, 3),
+        "disk_mb": round(disk_bytes(store.root) / 2**20, 3),
     }

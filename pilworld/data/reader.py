@@ -105,6 +105,9 @@ class EpisodeStore:
             self.info, json.loads(pj.read_text(encoding="utf-8")) if pj.is_file() else None, source=str(pj)
         )
         self.video_keys = [k for k, ft in self.info["features"].items() if ft.get("dtype") == "video"]
+        # The dataset's own path templates (LeRobot's defaults match ours; other writers may differ).
+        self.data_path = str(self.info.get("data_path") or layout.DATA_PATH)
+        self.video_path = str(self.info.get("video_path") or layout.VIDEO_PATH)
         self._table_cache: tuple[Path, pa.Table] | None = None
 
     # ------------------------------------------------------------------ metadata
@@ -160,7 +163,9 @@ class EpisodeStore:
     def frame_table(self, index: int) -> pa.Table:
         """The per-frame rows of one episode (all columns), in frame order."""
         row = self._check_index(index)
-        path = layout.data_path(self.root, int(row["data/chunk_index"]), int(row["data/file_index"]))
+        path = self.root / self.data_path.format(
+            chunk_index=int(row["data/chunk_index"]), file_index=int(row["data/file_index"])
+        )
         if self._table_cache is not None and self._table_cache[0] == path:
             table = self._table_cache[1]
         else:
@@ -175,15 +180,48 @@ class EpisodeStore:
         return table
 
     def video_file(self, index: int, view: str) -> tuple[Path, float]:
-        """(mp4 path, from_timestamp) of one view of one episode."""
+        """(mp4 path, from_timestamp) of one view (camera key without ``observation.images.``) of an episode."""
         row = self._check_index(index)
         key = IMAGE_PREFIX + view
         if key not in self.video_keys:
             raise KeyError(f"view {view!r} not in {self.root} (views: {sorted(self.spec.views)})")
-        path = layout.video_path(
-            self.root, key, int(row[f"videos/{key}/chunk_index"]), int(row[f"videos/{key}/file_index"])
-        )
+        try:
+            chunk, file = int(row[f"videos/{key}/chunk_index"]), int(row[f"videos/{key}/file_index"])
+        except (KeyError, TypeError):
+            where = self.root / layout.EPISODES_DIR
+            raise DatasetError(f"{where}: episode {index} has no video location for {key!r}") from None
+        path = self.root / self.video_path.format(video_key=key, chunk_index=chunk, file_index=file)
         return path, float(row.get(f"videos/{key}/from_timestamp") or 0.0)
+
+    def labels(self, index: int, table: pa.Table) -> dict[str, Any]:
+        """PiL-World labels of an episode from its frame rows (``table``) and episodes-table row.
+
+        Returns ``task`` ("" when the dataset names none), ``origin`` (None when absent: a recording from
+        elsewhere), ``subtask_index``, ``checkpoint``, ``seed``, ``round_index`` (None when absent), ``extra``.
+        """
+        row = self._check_index(index)
+        cols = set(table.column_names)
+
+        def first(name: str, default: Any) -> Any:
+            return table.column(name)[0].as_py() if name in cols and table.num_rows else row.get(name, default)
+
+        task_index = first("task_index", None)
+        task = self.tasks.get(int(task_index), "") if task_index is not None else ""
+        if not task.strip():
+            task = next((str(t) for t in row.get("tasks") or [] if str(t).strip()), "")
+        rounds = None
+        if "round_index" in cols:
+            rounds = np.asarray(table.column("round_index").to_numpy(zero_copy_only=False), dtype=np.int64)
+        origin = first("origin", None)
+        return {
+            "task": task,
+            "origin": str(origin) if origin else None,
+            "subtask_index": int(first("subtask_index", 0) or 0),
+            "checkpoint": str(first("checkpoint", "") or ""),
+            "seed": int(first("seed", 0) or 0),
+            "round_index": rounds,
+            "extra": json.loads(row["extra"]) if row.get("extra") else {},
+        }
 
     def frames(self, index: int, view: str, start: int = 0, count: int | None = None) -> NDArray[np.uint8]:
         """Decoded RGB frames ``start .. start+count`` of one view, uint8 (N, H, W, 3)."""
@@ -199,29 +237,11 @@ class EpisodeStore:
 
     def load(self, index: int, views: list[str] | None = None) -> Episode:
         """The whole episode: frames of the given views (default all), state, action and labels."""
-        row = self._check_index(index)
         table = self.frame_table(index)
-        T = table.num_rows
-        cols = set(table.column_names)
-
-        def scalar(name: str, default: Any) -> Any:
-            return table.column(name)[0].as_py() if name in cols and T else row.get(name, default)
-
-        rounds = (
-            np.asarray(table.column("round_index").to_numpy(), dtype=np.int64)
-            if "round_index" in cols
-            else np.zeros(T, dtype=np.int64)
-        )
-        task_index = int(scalar("task_index", 0))
+        labels = self.labels(index, table)
         return Episode(
             images={v: self.frames(index, v) for v in (views or list(self.spec.views))},
             state=list_column(table, STATE_KEY, self.spec.state_dim),
             action=list_column(table, ACTION_KEY, self.spec.action_dim),
-            task=self.tasks.get(task_index, (row.get("tasks") or [""])[0]),
-            origin=str(scalar("origin", "real")),
-            subtask_index=int(scalar("subtask_index", 0)),
-            checkpoint=str(scalar("checkpoint", "")),
-            seed=int(scalar("seed", 0)),
-            round_index=rounds,
-            extra=json.loads(row["extra"]) if row.get("extra") else {},
+            **{**labels, "origin": labels["origin"] or "real"},
         )

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import fcntl
 import json
-import os
+from functools import partial
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -28,7 +28,7 @@ import pyarrow as pa
 from numpy.typing import NDArray
 
 from pilworld.data import layout
-from pilworld.data.atomic import is_temporary, write_json, write_parquet
+from pilworld.data.atomic import atomic_write, is_temporary, write_json, write_parquet
 from pilworld.data.episode import Episode
 from pilworld.data.reader import DatasetError, EpisodeStore
 from pilworld.data.spec import ACTION_KEY, CODEBASE_VERSION, STATE_KEY, DatasetSpec
@@ -222,16 +222,8 @@ class EpisodeWriter:
         for view in self.spec.views:
             key = self.spec.video_key(view)
             path = layout.video_path(self.root, key, chunk, file)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}")
-            try:
-                encode_video(episode.images[view], tmp, fps, self.spec.video_mode)
-                if self.durable:
-                    with tmp.open("rb") as fh:
-                        os.fsync(fh.fileno())
-                tmp.replace(path)
-            finally:
-                tmp.unlink(missing_ok=True)
+            write = partial(encode_video, episode.images[view], fps=fps, mode=self.spec.video_mode)
+            atomic_write(path, write, durable=self.durable)
             stats[key] = image_stats(episode.images[view])
             row.update(
                 {

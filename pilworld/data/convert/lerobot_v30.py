@@ -9,13 +9,11 @@ round, checkpoint, seed, extra) are carried over when the source has them.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
 from numpy.typing import NDArray
 
 from pilworld.data import layout
@@ -23,7 +21,7 @@ from pilworld.data.convert.base import EpisodeSource, camera_size, provenance_en
 from pilworld.data.convert.mapping import ConvertMapping
 from pilworld.data.episode import Episode
 from pilworld.data.reader import EpisodeStore
-from pilworld.data.spec import ACTION_KEY, STATE_KEY
+from pilworld.data.spec import ACTION_KEY, IMAGE_PREFIX, STATE_KEY
 from pilworld.data.video_codec import decode_video
 
 
@@ -49,7 +47,6 @@ class LeRobotV30Source(EpisodeSource):
 
         self.cameras = mapping.select_cameras(list(self.store.video_keys), source=info_path)
         self.views = {view: self.output_size(camera_size(feats[key])) for key, view in self.cameras.items()}
-        self.video_path = str(info.get("video_path") or layout.VIDEO_PATH)
 
     def lengths(self) -> list[int]:
         return [int(row["length"]) for row in self.store.episodes]
@@ -61,18 +58,7 @@ class LeRobotV30Source(EpisodeSource):
         for index in range(start, self.store.num_episodes):
             yield self._load(index)
 
-    def _video(self, row: dict[str, Any], key: str) -> tuple[Path, float]:
-        """(mp4 path, from_timestamp) of camera ``key`` for the episode of ``row``."""
-        try:
-            chunk, file = int(row[f"videos/{key}/chunk_index"]), int(row[f"videos/{key}/file_index"])
-        except (KeyError, TypeError):
-            where = self.path / layout.EPISODES_DIR
-            raise ValueError(f"{where}: episode {row['episode_index']} has no video location for {key!r}") from None
-        path = self.path / self.video_path.format(video_key=key, chunk_index=chunk, file_index=file)
-        return path, float(row.get(f"videos/{key}/from_timestamp") or 0.0)
-
     def _load(self, index: int) -> Episode:
-        row = self.store.episodes[index]
         table = self.store.frame_table(index)  # this episode's rows, also from a shared file
         T = table.num_rows
         where = f"{self.path} episode {index}"
@@ -82,40 +68,14 @@ class LeRobotV30Source(EpisodeSource):
 
         images: dict[str, NDArray[np.uint8]] = {}
         for key, view in self.cameras.items():
-            path, from_ts = self._video(row, key)
+            path, from_ts = self.store.video_file(index, key[len(IMAGE_PREFIX) :])
             frames = decode_video(path, start=from_ts + t0, count=T, fps=self.source_fps, size=self.mapping.resize)
             if frames.shape[1:3] != self.views[view]:
                 raise ValueError(f"{path}: frames are {frames.shape[1:3]}, {layout.INFO} says {self.views[view]}")
             images[view] = frames
 
-        cols = set(table.column_names)
-
-        def first(name: str, default: Any) -> Any:
-            return table.column(name)[0].as_py() if name in cols and T else row.get(name, default)
-
-        task_index = first("task_index", None)
-        task = self.store.tasks.get(int(task_index), "") if task_index is not None else ""
-        if not task.strip():
-            task = next((str(t) for t in row.get("tasks") or [] if str(t).strip()), "")
-        if not task.strip():
-            task = self.fallback_task(where)
-        extra: dict[str, Any] = json.loads(row["extra"]) if row.get("extra") else {}
-        extra.update(self.provenance(index))
-        return Episode(
-            images=images,
-            state=state,
-            action=action,
-            task=task,
-            origin=self.mapping.origin or str(first("origin", None) or "real"),
-            subtask_index=int(first("subtask_index", 0) or 0),
-            checkpoint=str(first("checkpoint", "") or ""),
-            seed=int(first("seed", 0) or 0),
-            round_index=_int_column(table, "round_index"),
-            extra=extra,
-        )
-
-
-def _int_column(table: pa.Table, name: str) -> NDArray[np.int64] | None:
-    if name not in table.column_names:
-        return None
-    return np.asarray(table.column(name).to_numpy(), dtype=np.int64)
+        labels = self.store.labels(index, table)
+        labels["task"] = labels["task"] or self.fallback_task(where)
+        labels["origin"] = self.mapping.origin or labels["origin"] or "real"
+        labels["extra"].update(self.provenance(index))
+        return Episode(images=images, state=state, action=action, **labels)
