@@ -203,19 +203,21 @@ class ActionChunk:
     def dim(self) -> int:
         return int(self.actions.shape[1])
 
-    def stride_aligned(self, spec: ChunkSpec) -> NDArray[np.float32]:
-        """The K stride-aligned actions ``a_{t+Δ}, …, a_{t+KΔ}`` as float32[K, D] (paper §3.1)."""
+    def _require(self, spec: ChunkSpec) -> None:
         if self.horizon < spec.executed_steps:
             raise ValueError(
                 f"actions: chunk has {self.horizon} steps but K·Δ = {spec.frames}·{spec.stride} = "
                 f"{spec.executed_steps} are needed"
             )
+
+    def stride_aligned(self, spec: ChunkSpec) -> NDArray[np.float32]:
+        """The K stride-aligned actions ``a_{t+Δ}, …, a_{t+KΔ}`` as float32[K, D] (paper §3.1)."""
+        self._require(spec)
         return self.actions[spec.stride_indices()]
 
     def executed(self, spec: ChunkSpec) -> NDArray[np.float32]:
         """The first K·Δ steps, the ones both branches execute, float32[K·Δ, D]."""
-        if self.horizon < spec.executed_steps:
-            raise ValueError(f"actions: chunk has {self.horizon} steps but K·Δ = {spec.executed_steps} are needed")
+        self._require(spec)
         return self.actions[: spec.executed_steps]
 
 
