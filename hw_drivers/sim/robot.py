@@ -1,0 +1,326 @@
+"""``SimRobot``: the simulated dual-arm rig behind the ``Robot`` contract, plus sim-only extras.
+
+One ``send_action`` is one control step (30 Hz by default). Underneath, the command is interpolated
+linearly over the physics sub-steps (≈500 Hz, as a UR controller's servoJ interpolates) and tracked by
+stiff position servos; arm joints are rate-limited to the UR's 180 °/s and grips to a full stroke in
+0.5 s, and the command actually applied is returned. ``observe`` renders every camera headless.
+
+Sim-only extras: :meth:`SimRobot.reset` builds a subtask start (earlier subtasks already done, with
+``H_h`` history frames at stride Δ before it), :meth:`SimRobot.object_poses` and
+:meth:`SimRobot.check_subtask` expose privileged task state to judges — never to policies.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hw_drivers.robot import DeviceNotConnectedError
+from hw_drivers.sim.gl import make_renderer, mujoco
+from hw_drivers.sim.scene import build_mjcf, settings_for
+from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
+from pilworld.config.rig import RigConfig
+from pilworld.types import LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, STATE_DIM, Observation, RobotSpec, Start, Subtask
+
+DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
+ARM_SPEED = math.pi  # rad/s, a UR e-Series joint's maximum
+GRIP_SPEED = 2.0  # normalised opening per second (full stroke in 0.5 s)
+SETTLE_S = 0.5  # physics time given to a new layout before the lead-in
+
+
+def _arm_pose(pan: float, shoulder: float, elbow: float) -> list[float]:
+    # Wrist 1 makes shoulder + elbow + wrist1 = −π/2 so the tool axis points straight down.
+    return [pan, shoulder, elbow, -math.pi / 2 - (shoulder + elbow), -math.pi / 2, 0.0]
+
+
+# Both grippers open, pointing down, ~10 cm above the table near the arms' side of the workspace.
+HOME_Q14 = np.array([*_arm_pose(-0.3, -1.3, 1.9), 1.0, *_arm_pose(-0.19, -1.3, 1.9), 1.0], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class SubtaskCheck:
+    """The privileged verdict on one subtask: placed, released, and still placed after settling."""
+
+    success: bool
+    in_place: bool
+    released: bool
+    stable: bool
+    reason: str
+
+
+class SimRobot:
+    """The MuJoCo dual-arm rig with one task's objects; implements ``hw_drivers.robot.Robot``."""
+
+    def __init__(self, rig: RigConfig | str | Path = DEFAULT_RIG, task: str | Task = "sort_cubes") -> None:
+        self.rig = rig if isinstance(rig, RigConfig) else RigConfig.load(rig)
+        self.task = make_task(task) if isinstance(task, str) else task
+        base = self.rig.robot_spec()
+        speeds = tuple([ARM_SPEED] * 6 + [GRIP_SPEED]) * 2
+        self._spec = RobotSpec(
+            joint_names=base.joint_names,
+            lower=base.lower,
+            upper=base.upper,
+            cameras=base.cameras,
+            control_rate_hz=base.control_rate_hz,
+            image_size=base.image_size,
+            max_joint_speed=speeds,
+        )
+        self.settings = settings_for(self.rig)
+        self.xml = build_mjcf(self.rig, self.task.objects(), self.task.fixtures())
+        self._model: Any = None
+        self._data: Any = None
+        self._renderer: Any = None
+        self._target = HOME_Q14.copy()
+        self.layout: Layout | None = None
+        self.subtask: Subtask | None = None
+        self.steps = 0  # control steps since the last reset
+
+    # ------------------------------------------------------------------ Robot contract
+
+    @property
+    def spec(self) -> RobotSpec:
+        return self._spec
+
+    @property
+    def is_connected(self) -> bool:
+        return self._model is not None
+
+    def connect(self) -> None:
+        if self._model is not None:
+            return
+        try:
+            model = mujoco.MjModel.from_xml_string(self.xml)
+        except ValueError as exc:
+            raise ValueError(f"sim rig {self.rig.name!r} with task {self.task.name!r}: scene does not compile: {exc}")
+        self._model = model
+        self._data = mujoco.MjData(model)
+        w, h = self._spec.image_size
+        self._renderer = make_renderer(model, w, h)
+        self._index_model()
+        self.reset(seed=0, subtask=0, history=0)
+
+    def disconnect(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+        self._model = self._data = self._renderer = None
+
+    def __enter__(self) -> SimRobot:
+        self.connect()
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.disconnect()
+
+    def _require(self) -> None:
+        if self._model is None:
+            raise DeviceNotConnectedError(f"sim:{self.rig.name}", "not connected; call connect() first")
+
+    def _index_model(self) -> None:
+        m = self._model
+        self._arm_qadr = {
+            side: np.array([m.joint(f"{side}_joint_{i}").qposadr[0] for i in range(1, 7)]) for side in ("left", "right")
+        }
+        self._arm_dadr = {
+            side: np.array([m.joint(f"{side}_joint_{i}").dofadr[0] for i in range(1, 7)]) for side in ("left", "right")
+        }
+        self._finger_qadr = {
+            side: np.array([m.joint(f"{side}_finger_{f}").qposadr[0] for f in "ab"]) for side in ("left", "right")
+        }
+        self._act = {
+            side: np.array([m.actuator(f"{side}_joint_{i}").id for i in range(1, 7)]) for side in ("left", "right")
+        }
+        self._finger_act = {
+            side: np.array([m.actuator(f"{side}_finger_{f}").id for f in "ab"]) for side in ("left", "right")
+        }
+        self._half_open = {side: getattr(self.rig.arms, side).gripper.max_opening_m / 2 for side in ("left", "right")}
+        self._obj_body = {o.name: m.body(o.name).id for o in self.task.objects()}
+        self._obj_qadr = {o.name: m.joint(f"{o.name}_free").qposadr[0] for o in self.task.objects()}
+        gripper_bodies = {
+            m.body(f"{s}_{p}").id for s in ("left", "right") for p in ("tcp_frame", "finger_a", "finger_b")
+        }
+        self._gripper_geoms = {g for g in range(m.ngeom) if m.geom_bodyid[g] in gripper_bodies}
+
+    def state(self) -> NDArray[np.float32]:
+        """The measured 14-d state: joint angles and the normalised finger gap of each gripper."""
+        self._require()
+        q = self._data.qpos
+        out = np.empty(STATE_DIM, dtype=np.float64)
+        for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
+            out[arm] = q[self._arm_qadr[side]]
+            out[grip] = q[self._finger_qadr[side]].sum() / (2 * self._half_open[side])
+        return out.astype(np.float32)
+
+    def render(self, camera: str) -> NDArray[np.uint8]:
+        self._require()
+        self._renderer.update_scene(self._data, camera=camera)
+        return np.array(self._renderer.render(), dtype=np.uint8, copy=True)
+
+    def observe(self) -> Observation:
+        self._require()
+        images = {cam: self.render(cam) for cam in self._spec.cameras}
+        return Observation(images=images, state=self.state(), timestamp=float(self._data.time))
+
+    def clamp(self, action: NDArray[np.floating]) -> NDArray[np.float64]:
+        """The command after joint limits and the per-step speed limit (relative to the last command)."""
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (STATE_DIM,):
+            raise ValueError(f"action: expected shape ({STATE_DIM},), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action: must be finite, got {a.tolist()}")
+        a = np.clip(a, self._spec.lower_array, self._spec.upper_array)
+        step = np.asarray(self._spec.max_joint_speed) / self._spec.control_rate_hz
+        return np.clip(a, self._target - step, self._target + step)
+
+    def send_action(self, action: NDArray[np.floating]) -> NDArray[np.float32]:
+        """Track one absolute 14-d command for one control step; returns the command actually applied."""
+        self._require()
+        new = self.clamp(action)
+        old = self._target
+        n = self.settings.substeps
+        for k in range(1, n + 1):
+            self._apply_ctrl(old + (new - old) * (k / n))
+            mujoco.mj_step(self._model, self._data)
+        self._target = new
+        self.steps += 1
+        return new.astype(np.float32)
+
+    def _apply_ctrl(self, target: NDArray[np.float64], data: Any = None) -> None:
+        d = self._data if data is None else data
+        for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
+            d.ctrl[self._act[side]] = target[arm]
+            d.ctrl[self._finger_act[side]] = target[grip] * self._half_open[side]
+
+    # ------------------------------------------------------------------ sim-only extras
+
+    @property
+    def time(self) -> float:
+        self._require()
+        return float(self._data.time)
+
+    def command(self) -> NDArray[np.float32]:
+        """The last applied command (the target the servos track)."""
+        return self._target.astype(np.float32)
+
+    def reset(self, seed: int = 0, subtask: int = 0, *, history: int = 5, stride: int = 3) -> Start:
+        """Lay out the task for ``seed`` with subtasks before ``subtask`` done; return the shared start.
+
+        The arms begin slightly away from home (seeded) and move home over ``history·stride`` control
+        steps while the history frames are recorded every ``stride`` steps (oldest first); the start
+        observation follows the last step.
+        """
+        self._require()
+        self.task.check_index(subtask)
+        if isinstance(seed, bool) or not isinstance(seed, int):
+            raise ValueError(f"seed: expected an integer, got {seed!r}")
+        m, d = self._model, self._data
+        mujoco.mj_resetData(m, d)
+        self.layout = self.task.layout(seed)
+        self.set_object_poses(self.task.completed_poses(self.layout, subtask))
+        rng = np.random.default_rng([seed, subtask, 7])
+        start_q = HOME_Q14.copy()
+        for arm in (LEFT_ARM, RIGHT_ARM):
+            start_q[arm] += rng.uniform(-0.12, 0.12, 6) * np.array([1, 1, 1, 0.5, 0.5, 0.5])
+        self._set_arm_qpos(start_q)
+        self._target = start_q.copy()
+        self._apply_ctrl(start_q)
+        mujoco.mj_forward(m, d)
+        for _ in range(round(SETTLE_S * self._spec.control_rate_hz) * self.settings.substeps):
+            mujoco.mj_step(m, d)
+        d.time = 0.0
+        frames = []
+        n = history * stride
+        for k in range(n):
+            if k % stride == 0:
+                frames.append(self.observe())
+            self.send_action(start_q + (HOME_Q14 - start_q) * ((k + 1) / n))
+        self.steps = 0
+        self.subtask = Subtask(task=self.task.name, index=subtask, instruction=self.task.instruction, seed=seed)
+        return Start(subtask=self.subtask, observation=self.observe(), history=tuple(frames))
+
+    def _set_arm_qpos(self, q14: NDArray[np.float64]) -> None:
+        d = self._data
+        for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
+            d.qpos[self._arm_qadr[side]] = q14[arm]
+            d.qpos[self._finger_qadr[side]] = q14[grip] * self._half_open[side]
+            d.qvel[self._arm_dadr[side]] = 0.0
+
+    def set_object_poses(self, poses: dict[str, ObjectPose]) -> None:
+        """Teleport objects (privileged; used to build subtask starts and in tests)."""
+        self._require()
+        for name, pose in poses.items():
+            adr = self._obj_qadr[name]
+            self._data.qpos[adr : adr + 3] = pose.xyz
+            self._data.qpos[adr + 3 : adr + 7] = pose.quat
+        mujoco.mj_forward(self._model, self._data)
+
+    def object_poses(self, data: Any = None) -> dict[str, ObjectPose]:
+        """Privileged object poses (for judges and tests, never for policies)."""
+        self._require()
+        d = self._data if data is None else data
+        out = {}
+        for name, body in self._obj_body.items():
+            x = d.xpos[body]
+            q = d.xquat[body]
+            out[name] = ObjectPose(
+                (float(x[0]), float(x[1]), float(x[2])), (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+            )
+        return out
+
+    def touching_gripper(self, name: str, data: Any = None) -> bool:
+        """Whether object ``name`` touches any gripper geom."""
+        d = self._data if data is None else data
+        body = self._obj_body[name]
+        for i in range(d.ncon):
+            c = d.contact[i]
+            g1, g2 = int(c.geom1), int(c.geom2)
+            b1, b2 = self._model.geom_bodyid[g1], self._model.geom_bodyid[g2]
+            if (b1 == body and g2 in self._gripper_geoms) or (b2 == body and g1 in self._gripper_geoms):
+                return True
+        return False
+
+    def check_subtask(self, index: int | None = None, settle_s: float = 1.0) -> SubtaskCheck:
+        """Privileged success of a subtask now: in place, released, and still in place after settling.
+
+        Settling runs on a copy of the physics state with the arms holding their last command, so the
+        episode itself is not changed.
+        """
+        self._require()
+        if index is None:
+            if self.subtask is None:
+                raise ValueError("check_subtask: no subtask; call reset() first or pass index")
+            index = self.subtask.index
+        self.task.check_index(index)
+        assert self.layout is not None
+        name = self.task.subtask_object(index)
+        now = self.task.in_place(self.layout, self.object_poses(), index)
+        released = not self.touching_gripper(name)
+        copy = mujoco.MjData(self._model)
+        copy.qpos[:], copy.qvel[:], copy.act[:] = self._data.qpos, self._data.qvel, self._data.act
+        copy.time = self._data.time
+        self._apply_ctrl(self._target, copy)
+        mujoco.mj_forward(self._model, copy)
+        before = self.object_poses(copy)[name].position
+        for _ in range(round(settle_s / self._model.opt.timestep)):
+            mujoco.mj_step(self._model, copy)
+        after_poses = self.object_poses(copy)
+        later = self.task.in_place(self.layout, after_poses, index)
+        moved = float(np.linalg.norm(after_poses[name].position - before))
+        stable = later.in_place and moved < 0.01
+        success = now.in_place and released and stable
+        if not now.in_place:
+            reason = now.reason
+        elif not released:
+            reason = f"{name} is still held by a gripper"
+        elif not stable:
+            reason = f"{name} did not stay in place ({later.reason}; moved {moved * 100:.1f} cm)"
+        else:
+            reason = now.reason
+        return SubtaskCheck(success=success, in_place=now.in_place, released=released, stable=stable, reason=reason)

@@ -1,0 +1,215 @@
+"""What the scripted policies know about each task, and how they read the task's state from an image.
+
+This is the policy's *prior*: object colours and sizes, where the slots and the stacking mark are,
+and how the paper's instruction maps to a task. It is what a trained VLA has learned; it is not
+simulator state. Each call sees only the head-camera image: every object is found by colour,
+back-projected through the rig's ``CameraModel`` onto the plane where it would sit, and the task's
+progress is inferred from those positions (which cube already sits in its slot, which block is
+already on the tower).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.camera_model import CameraModel
+from hw_drivers.sim.tasks import sort_cubes as sc
+from hw_drivers.sim.tasks import stack_blocks as sb
+from hw_drivers.sim.tasks import stack_bowls as sw
+from pilworld.perception.colour import Blob, ColourClass, largest_blob, segment
+
+GRASP_Z = 0.022  # TCP height for grasping a cube or block resting on the table [m]
+XY = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Intent:
+    """The next pick-and-place: which object, the TCP grasp pose, and the object's goal centre."""
+
+    obj: str
+    grasp_xyz: tuple[float, float, float]
+    grasp_yaw: float | None  # None: the policy picks a convenient yaw (boxes are 90° symmetric)
+    goal_xy: tuple[float, float]  # where the object's centre must end up
+    release_z: float  # TCP height at release [m]
+    # For rim grasps: the object's centre relative to the TCP (rig frame xy) when held as planned.
+    held_offset: tuple[float, float] = (0.0, 0.0)
+
+
+class Sightings:
+    """Blob centroids of each object, remembered across calls while an object is occluded.
+
+    A sighting replaces the remembered one only when it shows at least ``keep`` of the largest blob
+    seen so far, so an arm passing over an object (a partial blob) does not drag its estimate.
+    """
+
+    def __init__(self, keep: float = 0.55) -> None:
+        self.keep = keep
+        self.uv: dict[str, XY] = {}
+        self.best: dict[str, int] = {}
+        self.last: dict[str, Blob | None] = {}
+
+    def update(self, image: NDArray[np.uint8], classes: list[ColourClass]) -> None:
+        masks = segment(image, classes)
+        for c in classes:
+            blob = largest_blob(masks[c.name], min_pixels=3)
+            self.last[c.name] = blob
+            if blob is None:
+                continue
+            best = max(self.best.get(c.name, 0), blob.n_pixels)
+            self.best[c.name] = best
+            if blob.n_pixels >= self.keep * best:
+                self.uv[c.name] = np.asarray(blob.centroid_uv, dtype=np.float64)
+
+    def visible_fraction(self, name: str) -> float:
+        blob = self.last.get(name)
+        best = self.best.get(name, 0)
+        return 0.0 if blob is None or best == 0 else blob.n_pixels / best
+
+
+def _bp(camera: CameraModel, uv: XY, z: float) -> XY:
+    pts, ok = camera.backproject_to_plane(uv, z)
+    return np.asarray(pts[:2], dtype=np.float64) if bool(ok) else np.full(2, np.nan)
+
+
+def _near(a: XY, b: XY | tuple[float, float], tol: float) -> bool:
+    return bool(np.all(np.isfinite(a))) and float(np.hypot(*(np.asarray(a) - np.asarray(b)))) < tol
+
+
+class TaskKnowledge(ABC):
+    """One task as a policy understands it."""
+
+    instruction: str
+    classes: list[ColourClass]
+
+    @abstractmethod
+    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
+        """The next pick-and-place given what is seen, or None when the task looks finished."""
+
+    def held_xy(self, seen: Sightings, camera: CameraModel, obj: str, z: float) -> XY | None:
+        """Where the held object ``obj`` appears, back-projected at height ``z`` (None if unseen)."""
+        blob = seen.last.get(obj)
+        if blob is None:
+            return None
+        return _bp(camera, np.asarray(blob.centroid_uv), z)
+
+
+def _rgb(rgba: tuple[float, ...]) -> tuple[float, float, float]:
+    return (rgba[0], rgba[1], rgba[2])
+
+
+class SortCubesKnowledge(TaskKnowledge):
+    instruction = sc.SortCubes.instruction
+
+    def __init__(self) -> None:
+        self.classes = [ColourClass(n, _rgb(rgba)) for n, _, rgba, _ in sc.CUBES]
+
+    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
+        for k, (name, edge, _, _) in enumerate(sc.CUBES):
+            uv = seen.uv.get(name)
+            slot = (sc.SLOT_X, sc.SLOT_YS[k])
+            if uv is None:
+                continue  # never seen: cannot act on it
+            xy = _bp(camera, uv, edge / 2)
+            if _near(xy, slot, 0.025):
+                continue
+            return Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, slot, GRASP_Z + 0.008)
+        return None
+
+
+class StackBlocksKnowledge(TaskKnowledge):
+    instruction = sb.StackBlocks.instruction
+
+    def __init__(self) -> None:
+        self.classes = [ColourClass(n, _rgb(rgba)) for n, rgba in sb.BLOCKS]
+
+    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
+        names = [n for n, _ in sb.BLOCKS]
+        e = sb.BLOCK
+        if any(n not in seen.uv for n in names[1:]):
+            return None
+        tower: XY | None = _bp(camera, seen.uv[names[0]], e / 2) if names[0] in seen.uv else None
+        for level, name in enumerate(names[1:], start=1):
+            on_tower = _bp(camera, seen.uv[name], e / 2 + level * e)
+            hidden_base = tower is None or seen.visible_fraction(names[level - 1]) < 0.4
+            if tower is not None and _near(on_tower, tower, 0.025):
+                tower = on_tower
+                continue
+            if hidden_base and tower is None:
+                tower = on_tower
+                continue
+            if tower is None:
+                return None
+            xy = _bp(camera, seen.uv[name], e / 2)
+            goal = (float(tower[0]), float(tower[1]))
+            return Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, goal, GRASP_Z + level * e + 0.006)
+        return None
+
+
+class StackBowlsKnowledge(TaskKnowledge):
+    instruction = sw.StackBowls.instruction
+
+    def __init__(self) -> None:
+        self.classes = [ColourClass(n, _rgb(rgba)) for n, _, _, _, rgba, _ in sw.BOWLS]
+
+    @staticmethod
+    def grasp_height(index: int) -> float:
+        """TCP height above the bowl's underside for a rim pinch (fingertips ~2 cm below the rim)."""
+        _, _, _, h, _, _ = sw.BOWLS[index]
+        return h + sw.WALL - 0.008
+
+    @staticmethod
+    def rim_radius(index: int) -> float:
+        _, rb, rt, h, _, _ = sw.BOWLS[index]
+        z = StackBowlsKnowledge.grasp_height(index) + 0.005  # mid-pad height
+        return rb + (rt - rb) * min(1.0, z / h)
+
+    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
+        below: XY | None = None
+        for k, (name, _, _, h, _, _) in enumerate(sw.BOWLS):
+            uv = seen.uv.get(name)
+            if uv is None:
+                return None
+            base = sw.nested_base_height(k)
+            stacked = _bp(camera, uv, base + h / 2)
+            target = np.asarray(sw.STACK_XY) if below is None else below
+            if _near(stacked, target, 0.02):
+                below = stacked
+                continue
+            xy = _bp(camera, uv, h / 2)
+            goal = (float(target[0]), float(target[1]))
+            return Intent(name, (float(xy[0]), float(xy[1]), self.grasp_height(k)), 0.0, goal, 0.0)
+        return None
+
+    def rim_grasp(
+        self, index: int, centre: XY, towards: XY
+    ) -> tuple[tuple[float, float, float], float, tuple[float, float]]:
+        """Grasp point on the rim facing ``towards`` (the arm), the yaw and the held centre offset."""
+        d = np.asarray(towards, dtype=np.float64) - centre
+        d /= max(float(np.linalg.norm(d)), 1e-9)
+        r = self.rim_radius(index)
+        p = centre + r * d
+        yaw = math.atan2(float(d[0]), float(-d[1]))  # tool y (closing axis) along the radius
+        return (float(p[0]), float(p[1]), self.grasp_height(index)), yaw, (float(-r * d[0]), float(-r * d[1]))
+
+
+KNOWLEDGE: Mapping[str, type[TaskKnowledge]] = {
+    sc.SortCubes.name: SortCubesKnowledge,
+    sw.StackBowls.name: StackBowlsKnowledge,
+    sb.StackBlocks.name: StackBlocksKnowledge,
+}
+
+
+def knowledge_for_instruction(instruction: str) -> TaskKnowledge:
+    """The task whose instruction this is (case and surrounding space ignored)."""
+    want = instruction.strip().lower()
+    for cls in KNOWLEDGE.values():
+        if cls.instruction.strip().lower() == want:
+            return cls()
+    known = "; ".join(repr(c.instruction) for c in KNOWLEDGE.values())
+    raise ValueError(f"instruction: the scripted policies know {known}; got {instruction!r}")

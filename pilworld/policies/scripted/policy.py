@@ -1,0 +1,204 @@
+"""``ScriptedPolicy``: an observation-only pick-and-place policy for the simulated rig's tasks.
+
+Each call sees an :class:`~pilworld.types.Observation` (the head-camera image and the 14-d measured
+state) and the instruction — never the simulator — and returns ``H_π × 14`` absolute joint commands:
+
+1. perceive: find each object by colour in ``cam_high`` and back-project it through the rig's
+   ``CameraModel`` (:mod:`pilworld.policies.scripted.knowledge`);
+2. decide: the task's next pick-and-place from those positions, or "done";
+3. act: if a gripper is holding something (its measured opening lies between empty-closed and open),
+   carry to the goal, lower, release and retreat; otherwise approach, descend, close and lift — then
+   continue into the carry in the same chunk (a chunked policy commits to its plan until the next
+   query). The other arm returns home. Motions are solved with closed-form IK.
+
+The only memory is where objects were last fully seen (objects vanish under a gripper from above);
+call :meth:`ScriptedPolicy.reset` at the start of each subtask or episode.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pilworld.config.rig import RigConfig
+from pilworld.kinematics.ur_dh import dh_params
+from pilworld.policies.scripted.knowledge import (
+    Intent,
+    Sightings,
+    StackBowlsKnowledge,
+    TaskKnowledge,
+    knowledge_for_instruction,
+)
+from pilworld.policies.scripted.motion import ArmPlanner, Waypoint, nearest_equivalent_yaw, tcp_yaw
+from pilworld.policies.scripted.skill import Checkpoint, checkpoint, errors_for
+from pilworld.types import HEAD_VIEW, LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, STATE_DIM, Observation
+
+SIDES = (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP))
+APPROACH_Z = 0.13  # TCP height for moving over objects [m]
+HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest on an object
+
+
+def _home() -> NDArray[np.float64]:
+    # The simulated rig's home pose (hw_drivers.sim.robot.HOME_Q14), as a policy's "rest" prior.
+    from hw_drivers.sim.robot import HOME_Q14
+
+    return HOME_Q14.copy()
+
+
+class ScriptedPolicy:
+    """A scripted checkpoint; ``infer(observation, instruction) -> float32[horizon, 14]``."""
+
+    def __init__(
+        self, rig: RigConfig, ckpt: str | Checkpoint = "scripted_step_30k", *, seed: int = 0, horizon: int = 50
+    ) -> None:
+        self.rig = rig
+        self.checkpoint = checkpoint(ckpt) if isinstance(ckpt, str) else ckpt
+        self.horizon = horizon
+        self.camera = rig.head_camera_model
+        spec = rig.robot_spec()
+        lo, hi = spec.lower_array.astype(np.float64), spec.upper_array.astype(np.float64)
+        kin = rig.kinematics
+        self.planners = {
+            side: ArmPlanner(getattr(kin, side), rig.control_rate_hz, lo[arm], hi[arm]) for side, arm, _ in SIDES
+        }
+        self.home = _home()
+        self._knowledge: dict[str, TaskKnowledge] = {}
+        self.seed = seed
+        self.sightings = Sightings()
+
+    @property
+    def name(self) -> str:
+        return self.checkpoint.name
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget remembered sightings; ``seed`` draws this episode's mistakes (see ``skill.py``)."""
+        if seed is not None:
+            self.seed = seed
+        self.sightings = Sightings()
+
+    def knowledge(self, instruction: str) -> TaskKnowledge:
+        if instruction not in self._knowledge:
+            self._knowledge[instruction] = knowledge_for_instruction(instruction)
+        return self._knowledge[instruction]
+
+    # ------------------------------------------------------------------ inference
+
+    def infer(self, observation: Observation, instruction: str) -> NDArray[np.float32]:
+        if HEAD_VIEW not in observation.images:
+            raise ValueError(f"observation: the scripted policy needs the {HEAD_VIEW!r} image, got {observation.views}")
+        state = np.asarray(observation.state, dtype=np.float64)
+        if state.shape != (STATE_DIM,):
+            raise ValueError(f"observation.state: expected {STATE_DIM} values, got shape {state.shape}")
+        know = self.knowledge(instruction)
+        self.sightings.update(np.asarray(observation.images[HEAD_VIEW]), know.classes)
+        intent = know.next_intent(self.sightings, self.camera)
+        holding = [side for side, _, grip in SIDES if HOLD_MIN < state[grip] < HOLD_MAX]
+        chunk = np.empty((self.horizon, STATE_DIM), dtype=np.float64)
+        active: str | None = None
+        if intent is not None:
+            active = holding[0] if holding else self._arm_for(intent)
+            arm, grip = (LEFT_ARM, LEFT_GRIP) if active == "left" else (RIGHT_ARM, RIGHT_GRIP)
+            plan = self._pick_and_place(active, state[arm], state[grip], intent, know, carrying=bool(holding))
+            chunk[:, arm], chunk[:, grip] = plan[:, :6], plan[:, 6]
+        for side, arm, grip in SIDES:
+            if side == active:
+                continue
+            chunk[:, np.r_[arm, grip]] = self._retreat(side, state[arm], state[grip])
+        return chunk.astype(np.float32)
+
+    def _arm_for(self, intent: Intent) -> str:
+        return "left" if intent.grasp_xyz[1] >= 0.0 else "right"
+
+    def _retreat(self, side: str, q: NDArray[np.float64], grip: float) -> NDArray[np.float64]:
+        arm, g = (LEFT_ARM, LEFT_GRIP) if side == "left" else (RIGHT_ARM, RIGHT_GRIP)
+        planner = self.planners[side]
+        T = planner.tcp(q)
+        if T[2, 3] < APPROACH_Z - 0.03:  # lift clear before swinging home
+            up = Waypoint((float(T[0, 3]), float(T[1, 3]), APPROACH_Z), tcp_yaw(T), 1.0, speed=0.3)
+            path = planner.plan(q, grip, [up], self.horizon)
+            n = int(np.argmax(np.all(path == path[-1], axis=1)))
+            rest = planner.joint_path(path[n, :6], 1.0, self.home[arm], 1.0, self.horizon - n - 1)
+            return np.vstack([path[: n + 1], rest])[: self.horizon]
+        return planner.joint_path(q, grip, self.home[arm], float(self.home[g]), self.horizon)
+
+    def _pick_and_place(
+        self,
+        side: str,
+        q: NDArray[np.float64],
+        grip: float,
+        intent: Intent,
+        know: TaskKnowledge,
+        *,
+        carrying: bool,
+    ) -> NDArray[np.float64]:
+        planner = self.planners[side]
+        err = errors_for(self.checkpoint.skill, self.seed, intent.obj)
+        v = 0.35 * err.speed
+        T = planner.tcp(q)
+        pos, yaw_now = T[:3, 3], tcp_yaw(T)
+        gx, gy, gz = intent.grasp_xyz
+        gx, gy = gx + err.grasp_offset[0], gy + err.grasp_offset[1]
+        offset = np.zeros(2)
+        release_z = intent.release_z
+        if isinstance(know, StackBowlsKnowledge):
+            index = [c.name for c in know.classes].index(intent.obj)
+            base_xy = getattr(self.rig.kinematics, side).T_rig_base[:2, 3]
+            (gx, gy, gz), yaw, off = know.rim_grasp(index, np.array([gx, gy]), base_xy)
+            offset = np.asarray(off)
+            from hw_drivers.sim.tasks.stack_bowls import nested_base_height
+
+            release_z = nested_base_height(index) + know.grasp_height(index) + 0.01
+            if carrying:
+                # Keep the yaw we hold it with; the bowl's centre lies along the closing axis.
+                yaw = yaw_now
+                offset = self._held_offset(know, intent, index, pos, yaw_now)
+        else:
+            yaw = nearest_equivalent_yaw(0.0, yaw_now, math.pi / 2)
+        yaw = nearest_equivalent_yaw(yaw, yaw_now, math.pi)
+        goal = np.asarray(intent.goal_xy) + np.asarray(err.place_offset) - offset
+        rz = release_z + err.release_extra
+        carry = [
+            Waypoint((float(goal[0]), float(goal[1]), APPROACH_Z), yaw, 0.0, speed=v),
+            Waypoint((float(goal[0]), float(goal[1]), rz), yaw, 0.0, speed=0.6 * v),
+            Waypoint((float(goal[0]), float(goal[1]), rz), yaw, 1.0, speed=v, dwell=4),
+            Waypoint((float(goal[0]), float(goal[1]), APPROACH_Z), yaw, 1.0, speed=v),
+        ]
+        if carrying:
+            far = float(np.hypot(*(pos[:2] - goal))) > 0.015
+            lift = (
+                [Waypoint((float(pos[0]), float(pos[1]), APPROACH_Z), yaw_now, 0.0, speed=0.6 * v)]
+                if far and pos[2] < APPROACH_Z - 0.02
+                else []
+            )
+            return planner.plan(q, 0.0, lift + (carry if far else carry[1:]), self.horizon)
+        aligned = (
+            float(np.hypot(pos[0] - gx, pos[1] - gy)) < 0.01
+            and abs(nearest_equivalent_yaw(yaw, yaw_now, 2 * math.pi) - yaw_now) < 0.1
+        )
+        wps: list[Waypoint] = []
+        if not aligned and pos[2] < APPROACH_Z - 0.02:
+            wps.append(Waypoint((float(pos[0]), float(pos[1]), APPROACH_Z), yaw_now, 1.0, speed=0.6 * v))
+        wps += [
+            Waypoint((gx, gy, APPROACH_Z), yaw, 1.0, speed=v),
+            Waypoint((gx, gy, gz), yaw, 1.0, speed=0.6 * v),
+            Waypoint((gx, gy, gz), yaw, 0.0, speed=v, dwell=8),
+            Waypoint((gx, gy, APPROACH_Z), yaw, 0.0, speed=0.6 * v),
+        ]
+        if aligned:
+            wps = wps[1:]
+        return planner.plan(q, 1.0 if not aligned else grip, wps + carry, self.horizon)
+
+    def _held_offset(
+        self, know: StackBowlsKnowledge, intent: Intent, index: int, tcp: NDArray[np.float64], yaw: float
+    ) -> NDArray[np.float64]:
+        """The held bowl's centre relative to the TCP: ±r along the closing axis, the sign from the image."""
+        r = know.rim_radius(index)
+        axis = np.array([math.sin(yaw), -math.cos(yaw)])
+        z = tcp[2] - know.grasp_height(index) + 0.5 * float(dh_params("ur5e").d[0]) * 0  # bowl base height
+        seen = know.held_xy(self.sightings, self.camera, intent.obj, z + 0.02)
+        cands = [r * axis, -r * axis]
+        if seen is None or not np.all(np.isfinite(seen)):
+            return cands[0]
+        return min(cands, key=lambda c: float(np.hypot(*(tcp[:2] + c - seen))))
