@@ -87,32 +87,41 @@ def bowl_object(
     rgba: Rgba,
     mass: float,
     wall: float = 0.006,
+    lip: float = 0.015,
     segments: int = 12,
     friction: float = 1.0,
 ) -> ObjectSpec:
-    """A bowl: a base disc and ``segments`` wall plates flaring from ``bottom_radius`` to ``top_radius``.
+    """A bowl: a base disc, ``segments`` wall plates flaring from ``bottom_radius`` to ``top_radius``, and
+    a vertical lip of height ``lip`` on top.
 
     The body origin is at the centre of the base's underside, so the bowl rests at z = 0 on the table.
-    The plates are slightly wider than the polygon edge so neighbouring plates overlap and the wall
-    has no gaps a rim or finger could slip through.
+    The lip is what a parallel gripper pinches: vertical pads on a slanted wall would only touch its
+    edges and let the bowl swing in the hand. Plates are slightly wider than the polygon edge so
+    neighbouring plates overlap and the wall has no gaps a finger could slip through.
     """
     if not 0 < bottom_radius < top_radius:
         raise ValueError(f"{name}: need 0 < bottom_radius < top_radius, got {bottom_radius}, {top_radius}")
+    if not 0 <= lip < height:
+        raise ValueError(f"{name}: need 0 <= lip < height, got lip={lip}, height={height}")
     geoms = [GeomSpec("cylinder", (bottom_radius, wall / 2), rgba, pos=(0.0, 0.0, wall / 2))]
-    flare = math.atan2(top_radius - bottom_radius, height)  # tilt of each plate away from vertical
-    slant = math.hypot(top_radius - bottom_radius, height)
+    body_h = height - lip  # height of the flaring part
+    flare = math.atan2(top_radius - bottom_radius, body_h)  # tilt of each plate away from vertical
+    slant = math.hypot(top_radius - bottom_radius, body_h)
     mid_r = (bottom_radius + top_radius) / 2.0
     half_width = 1.08 * math.pi * mid_r / segments  # half the polygon edge at mid height, plus overlap
+    lip_half_width = 1.08 * math.pi * top_radius / segments
     for i in range(segments):
         phi = 2.0 * math.pi * i / segments
-        # Plate frame: z along the slant, x tangential, y radial; rotate about z by phi, then tilt about
-        # the tangential axis so the top leans outwards.
+        # Plate frame: z along the slant, x radial, y tangential; yaw by phi, then tilt about the
+        # tangential axis so the top leans outwards (a positive turn about +y moves +z towards +x).
         q_yaw = _quat_axis_angle((0.0, 0.0, 1.0), phi)
-        q_tilt = _quat_axis_angle((0.0, 1.0, 0.0), flare)
-        # In the yawed frame the radial direction is +x; tilting about +y by +flare leans the top to +x.
-        quat = _quat_mul(q_yaw, q_tilt)
-        pos = (mid_r * math.cos(phi), mid_r * math.sin(phi), height / 2.0 + wall / 2)
+        quat = _quat_mul(q_yaw, _quat_axis_angle((0.0, 1.0, 0.0), flare))
+        c, s = math.cos(phi), math.sin(phi)
+        pos = (mid_r * c, mid_r * s, body_h / 2.0 + wall / 2)
         geoms.append(GeomSpec("box", (wall / 2, half_width, slant / 2), rgba, pos=pos, quat=quat))
+        if lip > 0:
+            lip_pos = (top_radius * c, top_radius * s, body_h + lip / 2.0 + wall / 2)
+            geoms.append(GeomSpec("box", (wall / 2, lip_half_width, lip / 2 + 0.002), rgba, pos=lip_pos, quat=q_yaw))
     return ObjectSpec(
         name=name,
         geoms=tuple(geoms),
@@ -120,5 +129,5 @@ def bowl_object(
         friction=friction,
         bottom=0.0,
         top=height + wall,
-        extra={"bottom_radius": bottom_radius, "top_radius": top_radius, "height": height, "wall": wall},
+        extra={"bottom_radius": bottom_radius, "top_radius": top_radius, "height": height, "wall": wall, "lip": lip},
     )

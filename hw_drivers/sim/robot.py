@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from hw_drivers.robot import DeviceNotConnectedError
 from hw_drivers.sim.gl import make_renderer, mujoco
-from hw_drivers.sim.scene import build_mjcf, settings_for
+from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, settings_for
 from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
 from pilworld.config.rig import RigConfig
 from pilworld.types import LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, STATE_DIM, Observation, RobotSpec, Start, Subtask
@@ -196,7 +196,8 @@ class SimRobot:
         d = self._data if data is None else data
         for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
             d.ctrl[self._act[side]] = target[arm]
-            d.ctrl[self._finger_act[side]] = target[grip] * self._half_open[side]
+            half = self._half_open[side]
+            d.ctrl[self._finger_act[side]] = target[grip] * (half + FINGER_SQUEEZE) - FINGER_SQUEEZE
 
     # ------------------------------------------------------------------ sim-only extras
 

@@ -39,6 +39,10 @@ TABLE_CENTRE_X = -0.05
 FINGER_HALF = (0.011, 0.005, 0.03)  # tangential, closing-direction thickness, length half-sizes [m]
 FINGER_CENTRE_BELOW_TCP = -0.012  # finger pad centre along the tool z relative to the TCP
 PALM_HALF = (0.03, 0.055, 0.02)
+# "Closed" commands each finger this far past contact, so a grasp presses with ≈ kp·squeeze (capped by
+# the force limit) whatever the object's width, as a real gripper's force setting does; a thin bowl
+# wall would otherwise be held with almost no force.
+FINGER_SQUEEZE = 0.025
 
 
 @dataclass(frozen=True)
@@ -177,7 +181,7 @@ def _gripper_xml(side: str, arm: ArmConfig, rig: RigConfig, s: SceneSettings, ac
         lines.append("</body>")
         actuators.append(
             f'<position name="{joint}" joint="{joint}" kp="{s.finger_kp}" dampratio="1" '
-            f'ctrlrange="0 {half_open:.6g}" forcerange="-{s.finger_force} {s.finger_force}"/>'
+            f'ctrlrange="{-FINGER_SQUEEZE:.6g} {half_open:.6g}" forcerange="-{s.finger_force} {s.finger_force}"/>'
         )
     for cam_name, cam in rig.wrist_cameras.items():
         if cam.arm == side:

@@ -15,11 +15,12 @@ from hw_drivers.sim.objects import FixtureSpec, GeomSpec, ObjectSpec, bowl_objec
 from hw_drivers.sim.tasks.base import Layout, ObjectPose, PlacementCheck, Task, sample_positions
 
 BOWLS = (  # name, bottom radius, top radius, height [m], rgba, mass [kg]
-    ("bowl_large", 0.040, 0.066, 0.045, (0.95, 0.45, 0.10, 1.0), 0.12),
-    ("bowl_medium", 0.031, 0.054, 0.040, (0.10, 0.70, 0.80, 1.0), 0.09),
-    ("bowl_small", 0.023, 0.043, 0.035, (0.90, 0.30, 0.60, 1.0), 0.07),
+    ("bowl_large", 0.045, 0.068, 0.045, (0.95, 0.45, 0.10, 1.0), 0.12),
+    ("bowl_medium", 0.032, 0.055, 0.040, (0.10, 0.70, 0.80, 1.0), 0.09),
+    ("bowl_small", 0.020, 0.042, 0.035, (0.90, 0.30, 0.60, 1.0), 0.07),
 )
 WALL = 0.006
+LIP = 0.015  # the vertical rim band a gripper pinches
 STACK_XY = (0.15, 0.0)
 MARK_RGBA = (0.25, 0.25, 0.27, 1.0)
 TOLERANCE = 0.02  # horizontal offset of a bowl from its target centre [m]
@@ -32,7 +33,7 @@ def nested_base_height(index: int) -> float:
     # A bowl rests where its base disc meets the flaring inner wall of the one below, or on its floor.
     below = BOWLS[index - 1]
     r_in0 = below[1] - WALL  # inner radius of the wall at the floor, roughly
-    slope = (below[2] - below[1]) / below[3]
+    slope = (below[2] - below[1]) / (below[3] - LIP)
     r_base = BOWLS[index][1]
     rise = max(0.0, (r_base - r_in0) / slope)
     return nested_base_height(index - 1) + WALL + rise
@@ -45,7 +46,9 @@ class StackBowls(Task):
 
     def objects(self) -> tuple[ObjectSpec, ...]:
         return tuple(
-            bowl_object(n, bottom_radius=rb, top_radius=rt, height=h, rgba=rgba, mass=m, wall=WALL)
+            bowl_object(
+                n, bottom_radius=rb, top_radius=rt, height=h, rgba=rgba, mass=m, wall=WALL, lip=LIP, friction=0.6
+            )
             for n, rb, rt, h, rgba, m in BOWLS
         )
 

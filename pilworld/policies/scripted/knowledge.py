@@ -48,7 +48,7 @@ class Sightings:
     seen so far, so an arm passing over an object (a partial blob) does not drag its estimate.
     """
 
-    def __init__(self, keep: float = 0.55) -> None:
+    def __init__(self, keep: float = 0.75) -> None:
         self.keep = keep
         self.uv: dict[str, XY] = {}
         self.best: dict[str, int] = {}
@@ -88,8 +88,22 @@ class TaskKnowledge(ABC):
     classes: list[ColourClass]
 
     @abstractmethod
+    def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
+        """Per object in task order: (name, its pick-and-place if it can be planned, whether it looks done)."""
+
     def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
-        """The next pick-and-place given what is seen, or None when the task looks finished."""
+        """The first unfinished object's pick-and-place, or None when the task looks finished."""
+        for _, intent, done in self.progress(seen, camera):
+            if not done:
+                return intent
+        return None
+
+    def intent_for(self, obj: str, seen: Sightings, camera: CameraModel) -> Intent | None:
+        """The pick-and-place of ``obj`` (e.g. the object in the hand), done or not."""
+        for name, intent, _ in self.progress(seen, camera):
+            if name == obj:
+                return intent
+        return None
 
     def held_xy(self, seen: Sightings, camera: CameraModel, obj: str, z: float) -> XY | None:
         """Where the held object ``obj`` appears, back-projected at height ``z`` (None if unseen)."""
@@ -109,17 +123,18 @@ class SortCubesKnowledge(TaskKnowledge):
     def __init__(self) -> None:
         self.classes = [ColourClass(n, _rgb(rgba)) for n, _, rgba, _ in sc.CUBES]
 
-    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
+    def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
+        out: list[tuple[str, Intent | None, bool]] = []
         for k, (name, edge, _, _) in enumerate(sc.CUBES):
             uv = seen.uv.get(name)
             slot = (sc.SLOT_X, sc.SLOT_YS[k])
             if uv is None:
-                continue  # never seen: cannot act on it
-            xy = _bp(camera, uv, edge / 2)
-            if _near(xy, slot, 0.025):
+                out.append((name, None, False))  # never seen: cannot act on it
                 continue
-            return Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, slot, GRASP_Z + 0.008)
-        return None
+            xy = _bp(camera, uv, edge / 2)
+            intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, slot, GRASP_Z + 0.008)
+            out.append((name, intent, _near(xy, slot, 0.025)))
+        return out
 
 
 class StackBlocksKnowledge(TaskKnowledge):
@@ -128,27 +143,38 @@ class StackBlocksKnowledge(TaskKnowledge):
     def __init__(self) -> None:
         self.classes = [ColourClass(n, _rgb(rgba)) for n, rgba in sb.BLOCKS]
 
-    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
+    def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
+        """The tower grows from the first block; a block is on it if, seen at that level, it sits above it.
+
+        From above, a stacked block hides most of the one below, so the base's own sighting is trusted
+        only while mostly visible; otherwise the block seen at the next level marks the tower.
+        """
         names = [n for n, _ in sb.BLOCKS]
         e = sb.BLOCK
-        if any(n not in seen.uv for n in names[1:]):
-            return None
         tower: XY | None = _bp(camera, seen.uv[names[0]], e / 2) if names[0] in seen.uv else None
+        out: list[tuple[str, Intent | None, bool]] = []
+        stacked = True
         for level, name in enumerate(names[1:], start=1):
+            if name not in seen.uv:
+                out.append((name, None, False))
+                stacked = False
+                continue
             on_tower = _bp(camera, seen.uv[name], e / 2 + level * e)
-            hidden_base = tower is None or seen.visible_fraction(names[level - 1]) < 0.4
-            if tower is not None and _near(on_tower, tower, 0.025):
+            base_hidden = seen.visible_fraction(names[level - 1]) < 0.4
+            done = stacked and (
+                (tower is not None and _near(on_tower, tower, 0.025)) or (tower is None and base_hidden)
+            )
+            intent = None
+            if tower is not None:
+                xy = _bp(camera, seen.uv[name], e / 2)
+                goal = (float(tower[0]), float(tower[1]))
+                intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, goal, GRASP_Z + level * e + 0.006)
+            out.append((name, intent, done))
+            if done:
                 tower = on_tower
-                continue
-            if hidden_base and tower is None:
-                tower = on_tower
-                continue
-            if tower is None:
-                return None
-            xy = _bp(camera, seen.uv[name], e / 2)
-            goal = (float(tower[0]), float(tower[1]))
-            return Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, goal, GRASP_Z + level * e + 0.006)
-        return None
+            else:
+                stacked = False
+        return out
 
 
 class StackBowlsKnowledge(TaskKnowledge):
@@ -159,32 +185,35 @@ class StackBowlsKnowledge(TaskKnowledge):
 
     @staticmethod
     def grasp_height(index: int) -> float:
-        """TCP height above the bowl's underside for a rim pinch (fingertips ~2 cm below the rim)."""
+        """TCP height above the bowl's underside for pinching the lip (fingertips just above its bottom)."""
         _, _, _, h, _, _ = sw.BOWLS[index]
-        return h + sw.WALL - 0.008
+        return h - sw.LIP + sw.WALL / 2 + 0.004 + 0.018  # 0.018: fingertips below the TCP
 
     @staticmethod
     def rim_radius(index: int) -> float:
-        _, rb, rt, h, _, _ = sw.BOWLS[index]
-        z = StackBowlsKnowledge.grasp_height(index) + 0.005  # mid-pad height
-        return rb + (rt - rb) * min(1.0, z / h)
+        return sw.BOWLS[index][2]  # the lip stands at the top radius
 
-    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
-        below: XY | None = None
+    def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
+        target: XY | None = np.asarray(sw.STACK_XY, dtype=np.float64)
+        out: list[tuple[str, Intent | None, bool]] = []
+        stacked = True
         for k, (name, _, _, h, _, _) in enumerate(sw.BOWLS):
             uv = seen.uv.get(name)
             if uv is None:
-                return None
-            base = sw.nested_base_height(k)
-            stacked = _bp(camera, uv, base + h / 2)
-            target = np.asarray(sw.STACK_XY) if below is None else below
-            if _near(stacked, target, 0.02):
-                below = stacked
+                out.append((name, None, False))
+                stacked, target = False, None
                 continue
-            xy = _bp(camera, uv, h / 2)
-            goal = (float(target[0]), float(target[1]))
-            return Intent(name, (float(xy[0]), float(xy[1]), self.grasp_height(k)), 0.0, goal, 0.0)
-        return None
+            nested = _bp(camera, uv, sw.nested_base_height(k) + h / 2)
+            done = stacked and target is not None and _near(nested, target, 0.02)
+            intent = None
+            if target is not None:
+                xy = _bp(camera, uv, h / 2)
+                goal = (float(target[0]), float(target[1]))
+                intent = Intent(name, (float(xy[0]), float(xy[1]), self.grasp_height(k)), 0.0, goal, 0.0)
+            out.append((name, intent, done))
+            stacked = done
+            target = nested if done else None
+        return out
 
     def rim_grasp(
         self, index: int, centre: XY, towards: XY

@@ -11,8 +11,9 @@ state) and the instruction — never the simulator — and returns ``H_π × 14`
    continue into the carry in the same chunk (a chunked policy commits to its plan until the next
    query). The other arm returns home. Motions are solved with closed-form IK.
 
-The only memory is where objects were last fully seen (objects vanish under a gripper from above);
-call :meth:`ScriptedPolicy.reset` at the start of each subtask or episode.
+Its only memory is where objects were last fully seen (objects vanish under a gripper seen from above)
+and which object it last went to grasp (the fingers hide what they hold); call
+:meth:`ScriptedPolicy.reset` at the start of each subtask or episode.
 """
 
 from __future__ import annotations
@@ -67,6 +68,7 @@ class ScriptedPolicy:
         self._knowledge: dict[str, TaskKnowledge] = {}
         self.seed = seed
         self.sightings = Sightings()
+        self._grasped: str | None = None  # the object this policy last went to grasp
 
     @property
     def name(self) -> str:
@@ -77,6 +79,7 @@ class ScriptedPolicy:
         if seed is not None:
             self.seed = seed
         self.sightings = Sightings()
+        self._grasped = None
 
     def knowledge(self, instruction: str) -> TaskKnowledge:
         if instruction not in self._knowledge:
@@ -93,8 +96,13 @@ class ScriptedPolicy:
             raise ValueError(f"observation.state: expected {STATE_DIM} values, got shape {state.shape}")
         know = self.knowledge(instruction)
         self.sightings.update(np.asarray(observation.images[HEAD_VIEW]), know.classes)
-        intent = know.next_intent(self.sightings, self.camera)
         holding = [side for side, _, grip in SIDES if HOLD_MIN < state[grip] < HOLD_MAX]
+        if holding:
+            held = self._grasped or self._held_object(know, holding[0], state)
+            intent = None if held is None else know.intent_for(held, self.sightings, self.camera)
+        else:
+            intent = know.next_intent(self.sightings, self.camera)
+            self._grasped = None if intent is None else intent.obj
         chunk = np.empty((self.horizon, STATE_DIM), dtype=np.float64)
         active: str | None = None
         if intent is not None:
@@ -107,6 +115,22 @@ class ScriptedPolicy:
                 continue
             chunk[:, np.r_[arm, grip]] = self._retreat(side, state[arm], state[grip])
         return chunk.astype(np.float32)
+
+    def _held_object(self, know: TaskKnowledge, side: str, state: NDArray[np.float64]) -> str | None:
+        """The unfinished object whose blob lies nearest the holding gripper in the head image."""
+        arm = LEFT_ARM if side == "left" else RIGHT_ARM
+        tcp = self.planners[side].tcp(state[arm])[:3, 3]
+        uv, _ = self.camera.project(tcp[None])
+        best, best_d = None, math.inf
+        done = {name for name, _, ok in know.progress(self.sightings, self.camera) if ok}
+        for c in know.classes:
+            blob = self.sightings.last.get(c.name)
+            if blob is None or c.name in done:
+                continue
+            d = float(np.hypot(*(np.asarray(blob.centroid_uv) - uv[0])))
+            if d < best_d:
+                best, best_d = c.name, d
+        return best
 
     def _arm_for(self, intent: Intent) -> str:
         return "left" if intent.grasp_xyz[1] >= 0.0 else "right"
