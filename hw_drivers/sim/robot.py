@@ -143,10 +143,7 @@ class SimRobot:
         self._half_open = {side: getattr(self.rig.arms, side).gripper.max_opening_m / 2 for side in ("left", "right")}
         self._obj_body = {o.name: m.body(o.name).id for o in self.task.objects()}
         self._obj_qadr = {o.name: m.joint(f"{o.name}_free").qposadr[0] for o in self.task.objects()}
-        gripper_bodies = {
-            m.body(f"{s}_{p}").id for s in ("left", "right") for p in ("tcp_frame", "finger_a", "finger_b")
-        }
-        self._gripper_geoms = {g for g in range(m.ngeom) if m.geom_bodyid[g] in gripper_bodies}
+        self._finger_body = {side: (m.body(f"{side}_finger_a").id, m.body(f"{side}_finger_b").id) for side in ("left", "right")}
 
     def state(self) -> NDArray[np.float32]:
         """The measured 14-d state: joint angles and the normalised finger gap of each gripper."""
@@ -275,17 +272,27 @@ class SimRobot:
             )
         return out
 
-    def touching_gripper(self, name: str, data: Any = None) -> bool:
-        """Whether object ``name`` touches any gripper geom."""
+    def held_by(self, name: str, data: Any = None) -> str | None:
+        """The arm whose two fingers both touch object ``name`` (a pinch), or None.
+
+        A single finger or the palm brushing an object while the gripper works on another one is not
+        holding it; an object resting on a gripper is caught by the settling check instead.
+        """
+        self._require()
         d = self._data if data is None else data
         body = self._obj_body[name]
+        touched: set[int] = set()
         for i in range(d.ncon):
             c = d.contact[i]
-            g1, g2 = int(c.geom1), int(c.geom2)
-            b1, b2 = self._model.geom_bodyid[g1], self._model.geom_bodyid[g2]
-            if (b1 == body and g2 in self._gripper_geoms) or (b2 == body and g1 in self._gripper_geoms):
-                return True
-        return False
+            b1, b2 = int(self._model.geom_bodyid[c.geom1]), int(self._model.geom_bodyid[c.geom2])
+            if b1 == body:
+                touched.add(b2)
+            elif b2 == body:
+                touched.add(b1)
+        for side in ("left", "right"):
+            if {self._finger_body[side][0], self._finger_body[side][1]} <= touched:
+                return side
+        return None
 
     def check_subtask(self, index: int | None = None, settle_s: float = 1.0) -> SubtaskCheck:
         """Privileged success of a subtask now: in place, released, and still in place after settling.
@@ -302,7 +309,8 @@ class SimRobot:
         assert self.layout is not None
         name = self.task.subtask_object(index)
         now = self.task.in_place(self.layout, self.object_poses(), index)
-        released = not self.touching_gripper(name)
+        holder = self.held_by(name)
+        released = holder is None
         copy = mujoco.MjData(self._model)
         copy.qpos[:], copy.qvel[:], copy.act[:] = self._data.qpos, self._data.qvel, self._data.act
         copy.time = self._data.time
@@ -319,7 +327,7 @@ class SimRobot:
         if not now.in_place:
             reason = now.reason
         elif not released:
-            reason = f"{name} is still held by a gripper"
+            reason = f"{name} is still held by the {holder} gripper"
         elif not stable:
             reason = f"{name} did not stay in place ({later.reason}; moved {moved * 100:.1f} cm)"
         else:

@@ -44,27 +44,37 @@ class Intent:
 class Sightings:
     """Blob centroids of each object, remembered across calls while an object is occluded.
 
-    A sighting replaces the remembered one only when it shows at least ``keep`` of the largest blob
-    seen so far, so an arm passing over an object (a partial blob) does not drag its estimate.
+    Objects vanish under a gripper seen from above. A sighting near a gripper (in the image) replaces
+    the remembered one only when it shows at least ``keep`` of the object's usual blob, so a gripper
+    passing over an object does not drag its estimate; a sighting away from the grippers is always
+    taken (the object may have moved, or look smaller elsewhere on the table), and so is one far from
+    where the object was remembered (it was carried there).
     """
 
-    def __init__(self, keep: float = 0.75) -> None:
+    def __init__(self, keep: float = 0.75, clear_px: float = 14.0) -> None:
         self.keep = keep
+        self.clear_px = clear_px
         self.uv: dict[str, XY] = {}
         self.best: dict[str, int] = {}
         self.last: dict[str, Blob | None] = {}
 
-    def update(self, image: NDArray[np.uint8], classes: list[ColourClass]) -> None:
+    def update(self, image: NDArray[np.uint8], classes: list[ColourClass], grippers_uv: NDArray[np.float64]) -> None:
         masks = segment(image, classes)
         for c in classes:
             blob = largest_blob(masks[c.name], min_pixels=3)
             self.last[c.name] = blob
             if blob is None:
                 continue
-            best = max(self.best.get(c.name, 0), blob.n_pixels)
-            self.best[c.name] = best
-            if blob.n_pixels >= self.keep * best:
-                self.uv[c.name] = np.asarray(blob.centroid_uv, dtype=np.float64)
+            centre = np.asarray(blob.centroid_uv, dtype=np.float64)
+            gaps = np.hypot(*(grippers_uv - centre).T) if len(grippers_uv) else np.array([np.inf])
+            known = self.uv.get(c.name)
+            moved = known is None or float(np.hypot(*(centre - known))) > self.clear_px
+            if float(np.min(gaps)) > self.clear_px or moved:
+                self.best[c.name] = blob.n_pixels
+                self.uv[c.name] = centre
+            elif blob.n_pixels >= self.keep * self.best.get(c.name, 0):
+                self.best[c.name] = max(self.best.get(c.name, 0), blob.n_pixels)
+                self.uv[c.name] = centre
 
     def visible_fraction(self, name: str) -> float:
         blob = self.last.get(name)

@@ -19,6 +19,10 @@ from pilworld.kinematics.dual_arm import ArmMount
 from pilworld.kinematics.ik import ik_nearest
 
 
+YAW_RATE = 1.5  # rad/s, peak tool yaw rate
+GRIP_RATE = 1.8  # normalised opening per second: a bit below the simulated gripper's 2/s
+
+
 @dataclass(frozen=True)
 class Waypoint:
     """A TCP target in the rig frame: position [m], yaw [rad], grip (0 closed … 1 open), dwell steps."""
@@ -90,7 +94,12 @@ class ArmPlanner:
             target = np.asarray(wp.xyz, dtype=np.float64)
             wyaw = nearest_equivalent_yaw(wp.yaw, yaw, 2 * math.pi)
             dist = float(np.linalg.norm(target - pos))
-            n = max(1, math.ceil(max(dist / (wp.speed * self.dt), abs(wyaw - yaw) / (1.5 * self.dt)) * 1.5))
+            # Eased segments average 2/3 of their peak speed; the grip moves no faster than the gripper.
+            n = max(
+                1,
+                math.ceil(max(dist / (wp.speed * self.dt), abs(wyaw - yaw) / (YAW_RATE * self.dt)) * 1.5),
+                math.ceil(abs(wp.grip - grip) / (GRIP_RATE * self.dt)),
+            )
             s = _smoothstep(np.arange(1, n + 1) / n)
             reached = True
             for si in s:

@@ -37,7 +37,8 @@ from pilworld.policies.scripted.skill import Checkpoint, checkpoint, errors_for
 from pilworld.types import HEAD_VIEW, LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, STATE_DIM, Observation
 
 SIDES = (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP))
-APPROACH_Z = 0.13  # TCP height for moving over objects [m]
+APPROACH_Z = 0.12  # TCP height for moving over objects [m]
+NOMINAL_SPEED = 0.6  # peak Cartesian TCP speed of the best checkpoint [m/s]
 HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest on an object
 
 
@@ -95,7 +96,9 @@ class ScriptedPolicy:
         if state.shape != (STATE_DIM,):
             raise ValueError(f"observation.state: expected {STATE_DIM} values, got shape {state.shape}")
         know = self.knowledge(instruction)
-        self.sightings.update(np.asarray(observation.images[HEAD_VIEW]), know.classes)
+        tcps = np.stack([self.planners[side].tcp(state[arm])[:3, 3] for side, arm, _ in SIDES])
+        grippers_uv, _ = self.camera.project(tcps)
+        self.sightings.update(np.asarray(observation.images[HEAD_VIEW]), know.classes, grippers_uv)
         holding = [side for side, _, grip in SIDES if HOLD_MIN < state[grip] < HOLD_MAX]
         if holding:
             held = self._grasped or self._held_object(know, holding[0], state)
@@ -132,6 +135,15 @@ class ScriptedPolicy:
                 best, best_d = c.name, d
         return best
 
+    def _home_xyz(self, side: str) -> tuple[float, float, float]:
+        arm = LEFT_ARM if side == "left" else RIGHT_ARM
+        p = self.planners[side].tcp(self.home[arm])[:3, 3]
+        return (float(p[0]), float(p[1]), float(p[2]))
+
+    def _home_yaw(self, side: str) -> float:
+        arm = LEFT_ARM if side == "left" else RIGHT_ARM
+        return tcp_yaw(self.planners[side].tcp(self.home[arm]))
+
     def _arm_for(self, intent: Intent) -> str:
         return "left" if intent.grasp_xyz[1] >= 0.0 else "right"
 
@@ -159,7 +171,7 @@ class ScriptedPolicy:
     ) -> NDArray[np.float64]:
         planner = self.planners[side]
         err = errors_for(self.checkpoint.skill, self.seed, intent.obj)
-        v = 0.35 * err.speed
+        v = NOMINAL_SPEED * err.speed
         T = planner.tcp(q)
         pos, yaw_now = T[:3, 3], tcp_yaw(T)
         gx, gy, gz = intent.grasp_xyz
@@ -188,12 +200,14 @@ class ScriptedPolicy:
             Waypoint((float(goal[0]), float(goal[1]), rz), yaw, 0.0, speed=0.6 * v),
             Waypoint((float(goal[0]), float(goal[1]), rz), yaw, 1.0, speed=v, dwell=4),
             Waypoint((float(goal[0]), float(goal[1]), APPROACH_Z), yaw, 1.0, speed=v),
+            # Clear the view: a gripper hovering over what it placed hides it from the head camera.
+            Waypoint(self._home_xyz(side), self._home_yaw(side), 1.0, speed=v),
         ]
         if carrying:
             far = float(np.hypot(*(pos[:2] - goal))) > 0.015
             lift = (
                 [Waypoint((float(pos[0]), float(pos[1]), APPROACH_Z), yaw_now, 0.0, speed=0.6 * v)]
-                if far and pos[2] < APPROACH_Z - 0.02
+                if far and pos[2] < APPROACH_Z - 0.03
                 else []
             )
             return planner.plan(q, 0.0, lift + (carry if far else carry[1:]), self.horizon)
@@ -202,7 +216,7 @@ class ScriptedPolicy:
             and abs(nearest_equivalent_yaw(yaw, yaw_now, 2 * math.pi) - yaw_now) < 0.1
         )
         wps: list[Waypoint] = []
-        if not aligned and pos[2] < APPROACH_Z - 0.02:
+        if not aligned and pos[2] < APPROACH_Z - 0.03:
             wps.append(Waypoint((float(pos[0]), float(pos[1]), APPROACH_Z), yaw_now, 1.0, speed=0.6 * v))
         wps += [
             Waypoint((gx, gy, APPROACH_Z), yaw, 1.0, speed=v),
