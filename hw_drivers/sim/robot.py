@@ -34,13 +34,12 @@ GRIP_SPEED = 2.0  # normalised opening per second (full stroke in 0.5 s)
 SETTLE_S = 0.5  # physics time given to a new layout before the lead-in
 
 
-def _arm_pose(pan: float, shoulder: float, elbow: float) -> list[float]:
-    # Wrist 1 makes shoulder + elbow + wrist1 = −π/2 so the tool axis points straight down.
-    return [pan, shoulder, elbow, -math.pi / 2 - (shoulder + elbow), -math.pi / 2, 0.0]
-
-
-# Both grippers open, pointing down, ~10 cm above the table near the arms' side of the workspace.
-HOME_Q14 = np.array([*_arm_pose(-0.3, -1.3, 1.9), 1.0, *_arm_pose(-0.19, -1.3, 1.9), 1.0], dtype=np.float64)
+# Both grippers open and pointing down at (−0.08, ±0.34, 0.16) m, beside and above the workspace, so
+# the arms hide as little of the table as possible from the head camera (solved with pilworld's IK).
+HOME_Q14 = np.array(
+    [-0.2586, -1.8292, 2.26, -2.0016, -1.5708, 0.0414, 1.0, -0.474, -1.8292, 2.26, -2.0016, -1.5708, -0.284, 1.0],
+    dtype=np.float64,
+)
 
 
 @dataclass(frozen=True)
@@ -312,10 +311,9 @@ class SimRobot:
         holder = self.held_by(name)
         released = holder is None
         copy = mujoco.MjData(self._model)
-        copy.qpos[:], copy.qvel[:], copy.act[:] = self._data.qpos, self._data.qvel, self._data.act
-        copy.time = self._data.time
+        # A full copy (warm-start and contact state included): resting stacks must stay at rest.
+        mujoco.mj_copyData(copy, self._model, self._data)
         self._apply_ctrl(self._target, copy)
-        mujoco.mj_forward(self._model, copy)
         before = self.object_poses(copy)[name].position
         for _ in range(round(settle_s / self._model.opt.timestep)):
             mujoco.mj_step(self._model, copy)

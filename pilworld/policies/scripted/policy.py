@@ -148,16 +148,21 @@ class ScriptedPolicy:
         return "left" if intent.grasp_xyz[1] >= 0.0 else "right"
 
     def _retreat(self, side: str, q: NDArray[np.float64], grip: float) -> NDArray[np.float64]:
+        """Back to home in Cartesian space, first straight up: a joint-space move could dip into a stack."""
         arm, g = (LEFT_ARM, LEFT_GRIP) if side == "left" else (RIGHT_ARM, RIGHT_GRIP)
         planner = self.planners[side]
         T = planner.tcp(q)
-        if T[2, 3] < APPROACH_Z - 0.03:  # lift clear before swinging home
-            up = Waypoint((float(T[0, 3]), float(T[1, 3]), APPROACH_Z), tcp_yaw(T), 1.0, speed=0.3)
-            path = planner.plan(q, grip, [up], self.horizon)
-            n = int(np.argmax(np.all(path == path[-1], axis=1)))
-            rest = planner.joint_path(path[n, :6], 1.0, self.home[arm], 1.0, self.horizon - n - 1)
-            return np.vstack([path[: n + 1], rest])[: self.horizon]
-        return planner.joint_path(q, grip, self.home[arm], float(self.home[g]), self.horizon)
+        home = self._home_xyz(side)
+        if float(np.linalg.norm(T[:3, 3] - np.asarray(home))) < 0.01:
+            return planner.joint_path(q, grip, self.home[arm], float(self.home[g]), self.horizon)
+        safe = max(float(T[2, 3]), APPROACH_Z, home[2])
+        yaw = self._home_yaw(side)
+        wps = [
+            Waypoint((float(T[0, 3]), float(T[1, 3]), safe), tcp_yaw(T), 1.0, speed=0.3),
+            Waypoint((home[0], home[1], safe), yaw, 1.0, speed=NOMINAL_SPEED),
+            Waypoint(home, yaw, 1.0, speed=0.3),
+        ]
+        return planner.plan(q, grip, wps, self.horizon)
 
     def _pick_and_place(
         self,
@@ -195,19 +200,20 @@ class ScriptedPolicy:
         yaw = nearest_equivalent_yaw(yaw, yaw_now, math.pi)
         goal = np.asarray(intent.goal_xy) + np.asarray(err.place_offset) - offset
         rz = release_z + err.release_extra
+        high = max(APPROACH_Z, rz + 0.05)  # travel height: clear of the tallest stack it builds
         carry = [
-            Waypoint((float(goal[0]), float(goal[1]), APPROACH_Z), yaw, 0.0, speed=v),
+            Waypoint((float(goal[0]), float(goal[1]), high), yaw, 0.0, speed=v),
             Waypoint((float(goal[0]), float(goal[1]), rz), yaw, 0.0, speed=0.6 * v),
             Waypoint((float(goal[0]), float(goal[1]), rz), yaw, 1.0, speed=v, dwell=4),
-            Waypoint((float(goal[0]), float(goal[1]), APPROACH_Z), yaw, 1.0, speed=v),
+            Waypoint((float(goal[0]), float(goal[1]), high), yaw, 1.0, speed=v),
             # Clear the view: a gripper hovering over what it placed hides it from the head camera.
             Waypoint(self._home_xyz(side), self._home_yaw(side), 1.0, speed=v),
         ]
         if carrying:
             far = float(np.hypot(*(pos[:2] - goal))) > 0.015
             lift = (
-                [Waypoint((float(pos[0]), float(pos[1]), APPROACH_Z), yaw_now, 0.0, speed=0.6 * v)]
-                if far and pos[2] < APPROACH_Z - 0.03
+                [Waypoint((float(pos[0]), float(pos[1]), high), yaw_now, 0.0, speed=0.6 * v)]
+                if far and pos[2] < high - 0.03
                 else []
             )
             return planner.plan(q, 0.0, lift + (carry if far else carry[1:]), self.horizon)
@@ -216,13 +222,13 @@ class ScriptedPolicy:
             and abs(nearest_equivalent_yaw(yaw, yaw_now, 2 * math.pi) - yaw_now) < 0.1
         )
         wps: list[Waypoint] = []
-        if not aligned and pos[2] < APPROACH_Z - 0.03:
-            wps.append(Waypoint((float(pos[0]), float(pos[1]), APPROACH_Z), yaw_now, 1.0, speed=0.6 * v))
+        if not aligned and pos[2] < high - 0.03:
+            wps.append(Waypoint((float(pos[0]), float(pos[1]), high), yaw_now, 1.0, speed=0.6 * v))
         wps += [
-            Waypoint((gx, gy, APPROACH_Z), yaw, 1.0, speed=v),
+            Waypoint((gx, gy, high), yaw, 1.0, speed=v),
             Waypoint((gx, gy, gz), yaw, 1.0, speed=0.6 * v),
             Waypoint((gx, gy, gz), yaw, 0.0, speed=v, dwell=8),
-            Waypoint((gx, gy, APPROACH_Z), yaw, 0.0, speed=0.6 * v),
+            Waypoint((gx, gy, high), yaw, 0.0, speed=0.6 * v),
         ]
         if aligned:
             wps = wps[1:]
