@@ -34,6 +34,8 @@ configure_gl()
 
 import mujoco  # noqa: E402  (must follow configure_gl)
 
+__all__ = ["DEFAULT_BACKEND", "FIX_HINT", "SimRenderError", "configure_gl", "make_renderer", "mujoco"]
+
 
 def make_renderer(model: Any, width: int, height: int) -> Any:
     """A ``mujoco.Renderer`` of ``width``×``height``, or :class:`SimRenderError` naming the fix."""

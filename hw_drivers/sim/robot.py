@@ -96,7 +96,9 @@ class SimRobot:
         try:
             model = mujoco.MjModel.from_xml_string(self.xml)
         except ValueError as exc:
-            raise ValueError(f"sim rig {self.rig.name!r} with task {self.task.name!r}: scene does not compile: {exc}")
+            raise ValueError(
+                f"sim rig {self.rig.name!r} with task {self.task.name!r}: scene does not compile: {exc}"
+            ) from exc
         self._model = model
         self._data = mujoco.MjData(model)
         w, h = self._spec.image_size
@@ -142,7 +144,9 @@ class SimRobot:
         self._half_open = {side: getattr(self.rig.arms, side).gripper.max_opening_m / 2 for side in ("left", "right")}
         self._obj_body = {o.name: m.body(o.name).id for o in self.task.objects()}
         self._obj_qadr = {o.name: m.joint(f"{o.name}_free").qposadr[0] for o in self.task.objects()}
-        self._finger_body = {side: (m.body(f"{side}_finger_a").id, m.body(f"{side}_finger_b").id) for side in ("left", "right")}
+        self._finger_body = {
+            side: (m.body(f"{side}_finger_a").id, m.body(f"{side}_finger_b").id) for side in ("left", "right")
+        }
 
     def state(self) -> NDArray[np.float32]:
         """The measured 14-d state: joint angles and the normalised finger gap of each gripper."""

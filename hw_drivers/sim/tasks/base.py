@@ -36,7 +36,7 @@ class ObjectPose:
 
     def tilt(self) -> float:
         """Angle between the object's z axis and the vertical [rad]."""
-        w, x, y, z = self.quat
+        _, x, y, _ = self.quat
         zz = 1.0 - 2.0 * (x * x + y * y)  # R[2, 2]
         return math.acos(max(-1.0, min(1.0, zz)))
 

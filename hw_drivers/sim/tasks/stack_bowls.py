@@ -77,7 +77,7 @@ class StackBowls(Task):
         xy = sample_positions(rng, 3, x_range=(-0.1, 0.06), y_range=(-0.22, 0.22), min_distance=0.14, keep_out=keep_out)
         order = rng.permutation(3)
         poses = {
-            name: ObjectPose.yawed(*xy[k], 0.0, float(rng.uniform(-math.pi, math.pi)))
+            name: ObjectPose.yawed(xy[k][0], xy[k][1], 0.0, float(rng.uniform(-math.pi, math.pi)))
             for (name, *_), k in zip(BOWLS, order, strict=True)
         }
         return Layout(seed=seed, poses=poses, goals={"stack": (*STACK_XY, 0.0)})

@@ -18,7 +18,6 @@ from pilworld.geometry import invert_transform
 from pilworld.kinematics.dual_arm import ArmMount
 from pilworld.kinematics.ik import ik_nearest
 
-
 YAW_RATE = 1.5  # rad/s, peak tool yaw rate
 GRIP_RATE = 1.8  # normalised opening per second: a bit below the simulated gripper's 2/s
 

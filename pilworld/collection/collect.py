@@ -1,0 +1,254 @@
+"""``pilworld sim collect``: whole episodes of scripted checkpoints on the simulated rig → episode store.
+
+A *run* is one physical episode: a task laid out for a seed, the checkpoint working through every
+subtask back to back (R rounds each, no reset in between), each subtask judged by the privileged
+checker when its rounds end. It is stored as one episode per subtask (``subtask_index``, the
+checker's verdict in ``meta/outcomes.parquet`` as judge ``sim_checker``), so success and failure
+labels attach to exactly the frames they describe; the parts of a run share ``extra.run``.
+
+Runs are spread over worker processes (each with its own MuJoCo and EGL context); the parent alone
+writes. Rerunning the same command resumes: runs already stored are skipped, and a run cut short by
+a kill is simulated again (it is deterministic) and only its missing parts are appended.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from pilworld.data.episode import Episode
+from pilworld.data.outcomes import Outcome, record_outcomes
+from pilworld.data.reader import EpisodeStore
+from pilworld.data.spec import DatasetSpec
+from pilworld.data.writer import EpisodeWriter
+from pilworld.types import ChunkSpec
+
+JUDGE_ID = "sim_checker"
+
+
+@dataclass(frozen=True)
+class RunJob:
+    task: str
+    checkpoint: str
+    seed: int
+
+    @property
+    def run_id(self) -> str:
+        return f"{self.task}/{self.checkpoint}/{self.seed}"
+
+
+@dataclass(frozen=True)
+class PartResult:
+    """One subtask of a run, ready to write (numpy arrays only: it crosses a process boundary)."""
+
+    job: RunJob
+    subtask_index: int
+    num_subtasks: int
+    instruction: str
+    images: dict[str, np.ndarray]
+    state: np.ndarray
+    action: np.ndarray
+    rounds: np.ndarray
+    success: bool
+    reason: str
+
+
+_ROBOTS: dict[tuple[str, str], Any] = {}
+
+
+def _robot(rig_path: str, task: str) -> Any:
+    from hw_drivers.sim.robot import SimRobot
+
+    key = (rig_path, task)
+    if key not in _ROBOTS:
+        robot = SimRobot(rig_path, task)
+        robot.connect()
+        _ROBOTS[key] = robot
+    return _ROBOTS[key]
+
+
+def simulate_run(rig_path: str, job: RunJob, spec: ChunkSpec) -> list[PartResult]:
+    """Simulate one run (all subtasks back to back) and return its parts."""
+    from pilworld.collection.rollout import run_subtask
+    from pilworld.policies.scripted import ScriptedPolicy
+
+    robot = _robot(rig_path, job.task)
+    policy = ScriptedPolicy(robot.rig, job.checkpoint, horizon=spec.horizon)
+    start = robot.reset(seed=job.seed, subtask=0, history=spec.history, stride=spec.stride)
+    obs = start.observation
+    parts = []
+    n = robot.task.num_subtasks
+    for k in range(n):
+        policy.reset(seed=job.seed * 100 + k)
+        robot.subtask = start.subtask.__class__(job.task, k, robot.task.instruction, job.seed)
+        rec = run_subtask(robot, policy.infer, obs, robot.task.instruction, spec=spec, subtask_index=k)
+        assert rec.check is not None
+        parts.append(
+            PartResult(
+                job=job,
+                subtask_index=k,
+                num_subtasks=n,
+                instruction=robot.task.instruction,
+                images={v: np.stack(frames) for v, frames in rec.images.items()},
+                state=np.stack(rec.states),
+                action=np.stack(rec.actions),
+                rounds=np.asarray(rec.rounds, dtype=np.int64),
+                success=rec.check.success,
+                reason=rec.check.reason,
+            )
+        )
+        obs = robot.observe()
+    return parts
+
+
+def _worker(args: tuple[str, RunJob, ChunkSpec]) -> list[PartResult]:
+    return simulate_run(*args)
+
+
+def dataset_spec(rig_path: str, video_mode: str, spec: ChunkSpec) -> DatasetSpec:
+    from pilworld.config.rig import RigConfig
+
+    rig = RigConfig.load(rig_path)
+    fps = rig.control_rate_hz / spec.stride
+    if abs(fps - round(fps)) > 1e-9:
+        raise ValueError(f"control rate {rig.control_rate_hz} Hz / stride {spec.stride} is not an integer frame rate")
+    size = (rig.image_size.height, rig.image_size.width)
+    return DatasetSpec(fps=round(fps), views={v: size for v in rig.cameras}, video_mode=video_mode)
+
+
+def stored_parts(root: Path) -> dict[str, set[int]]:
+    """Run id → subtask indices already in the dataset at ``root``."""
+    if not (root / "meta" / "info.json").is_file():
+        return {}
+    done: dict[str, set[int]] = {}
+    for row in EpisodeStore(root).episodes:
+        run = _extra(row).get("run")
+        if run:
+            done.setdefault(str(run), set()).add(int(row["subtask_index"]))
+    return done
+
+
+def _extra(row: dict[str, Any]) -> dict[str, Any]:
+    raw = row.get("extra")
+    return dict(json.loads(raw)) if raw else {}
+
+
+def plan_jobs(tasks: Sequence[str], checkpoints: Sequence[str], episodes: int, seed0: int) -> list[RunJob]:
+    return [RunJob(t, c, seed0 + i) for t in tasks for c in checkpoints for i in range(episodes)]
+
+
+def _results(jobs: list[RunJob], rig_path: str, spec: ChunkSpec, workers: int) -> Iterator[list[PartResult]]:
+    args = [(rig_path, j, spec) for j in jobs]
+    if workers <= 1:
+        for a in args:
+            yield _worker(a)
+        return
+    ctx = mp.get_context("spawn")  # a forked child would inherit the parent's GL state
+    with ctx.Pool(workers) as pool:
+        yield from pool.imap(_worker, args)
+
+
+def collect(
+    out: str | Path,
+    *,
+    rig_path: str,
+    tasks: Sequence[str],
+    checkpoints: Sequence[str],
+    episodes: int,
+    seed0: int = 0,
+    workers: int | None = None,
+    video_mode: str = "h264",
+    spec: ChunkSpec | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Collect ``episodes`` runs per task × checkpoint into ``out``; returns a summary (counts, time)."""
+    import time
+
+    spec = spec or ChunkSpec()
+    root = Path(out)
+    done = stored_parts(root)
+    jobs = plan_jobs(tasks, checkpoints, episodes, seed0)
+    todo = [j for j in jobs if j.run_id not in done or len(done[j.run_id]) < _num_subtasks(j.task)]
+    workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+    t0 = time.monotonic()
+    written = 0
+    with EpisodeWriter(root, dataset_spec(rig_path, video_mode, spec)) as writer:
+        bar = tqdm(total=len(todo), desc="runs", unit="run", disable=not progress)
+        for parts in _results(todo, rig_path, spec, workers):
+            have = done.get(parts[0].job.run_id, set())
+            outcomes = []
+            for p in parts:
+                if p.subtask_index in have:
+                    continue
+                index = writer.append(_episode(p))
+                outcomes.append(Outcome(index, JUDGE_ID, "sim_state", p.success, len(p.state)))
+                written += 1
+            if outcomes:
+                record_outcomes(root, outcomes)
+            bar.update(1)
+        bar.close()
+    summary = summarize(root)
+    summary.update(
+        {
+            "runs_planned": len(jobs),
+            "runs_simulated": len(todo),
+            "parts_written": written,
+            "seconds": round(time.monotonic() - t0, 1),
+            "workers": workers,
+        }
+    )
+    return summary
+
+
+def _num_subtasks(task: str) -> int:
+    from hw_drivers.sim.tasks import make_task
+
+    return make_task(task).num_subtasks
+
+
+def _episode(p: PartResult) -> Episode:
+    return Episode(
+        images=p.images,
+        state=p.state.astype(np.float32),
+        action=p.action.astype(np.float32),
+        task=p.instruction,
+        origin="real",
+        subtask_index=p.subtask_index,
+        checkpoint=p.job.checkpoint,
+        seed=p.job.seed,
+        round_index=p.rounds,
+        extra={"run": p.job.run_id, "sim_task": p.job.task, "parts": p.num_subtasks, "checker": p.reason},
+    )
+
+
+def summarize(root: Path) -> dict[str, Any]:
+    """Episodes, frames, bytes and success/failure counts per task and checkpoint of a collected set."""
+    from pilworld.data.info import disk_bytes
+    from pilworld.data.outcomes import read_outcomes
+
+    store = EpisodeStore(root)
+    verdict = {o.episode_index: o.success for o in read_outcomes(root) if o.judge_id == JUDGE_ID}
+    table: dict[str, dict[str, dict[str, int]]] = {}
+    frames = 0
+    for e, ep in enumerate(store.episodes):
+        task = str(_extra(ep).get("sim_task", "?"))
+        row = table.setdefault(task, {}).setdefault(str(ep.get("checkpoint", "")), {"success": 0, "failure": 0})
+        row["success" if verdict.get(e) else "failure"] += 1
+        frames += int(ep["length"])
+    return {
+        "root": str(root),
+        "episodes": store.num_episodes,
+        "frames": frames,
+        "bytes": disk_bytes(root),
+        "success": sum(r["success"] for t in table.values() for r in t.values()),
+        "failure": sum(r["failure"] for t in table.values() for r in t.values()),
+        "per_task": table,
+    }
