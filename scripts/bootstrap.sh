@@ -33,6 +33,20 @@ if [ ! -x "$VENV/bin/python" ]; then
   fi
 fi
 
+# Headless OpenGL for the simulated rig (MuJoCo renders through EGL; Mesa draws on the CPU). A bare
+# Debian/Ubuntu machine lacks the libraries; install them when we can (root + apt), else say how.
+if ! ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1'; then
+  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
+    log "installing headless OpenGL (libegl1 libegl-mesa0 libgl1-mesa-dri) for the simulated rig ..."
+    if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+          libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 >/dev/null; }; then
+      log "warning: apt-get could not install EGL; the simulated rig will not render"
+    fi
+  else
+    log "warning: no libEGL found; install libegl1 libegl-mesa0 libgl1-mesa-dri for the simulated rig"
+  fi
+fi
+
 stamp="$VENV/.pilworld-install"
 want="$(cat "$ROOT/pyproject.toml" | sha256sum | cut -d' ' -f1) $ROOT"
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then

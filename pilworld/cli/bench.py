@@ -41,6 +41,16 @@ def register(sub: Any) -> None:
     dt.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     dt.set_defaults(handler=_data)
 
+    sm = benches.add_parser("sim", help="simulated rig: physics steps/s, render ms/view, realtime factor, success rates")
+    sm.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    sm.add_argument("--task", default="sort_cubes", help="task for the speed figures (default sort_cubes)")
+    sm.add_argument("--subtasks", type=int, default=0, help="also measure success rates over N subtask starts per task")
+    sm.add_argument("--tasks", default="all", help="comma-separated tasks for the success rates (default all)")
+    sm.add_argument("--checkpoints", default="all", help="comma-separated scripted checkpoints (default all)")
+    sm.add_argument("--workers", type=int, default=None, help="processes for the success rates (default: CPUs)")
+    sm.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    sm.set_defaults(handler=_sim)
+
 
 def _control_video(args: argparse.Namespace) -> int:
     from pilworld.bench.control_video import run_control_video_bench
@@ -76,6 +86,43 @@ def _data(args: argparse.Namespace) -> int:
         f"frames/s, read {result['read_frames_per_s']:.0f} frames/s, clips {result['clips_per_s']:.0f}/s "
         f"({result['clips_per_s_cold']:.0f}/s while decoding)"
     )
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def _names(value: str, all_names: list[str], what: str) -> list[str]:
+    if value.strip() == "all":
+        return all_names
+    names = [v.strip() for v in value.split(",") if v.strip()]
+    bad = [n for n in names if n not in all_names]
+    if bad or not names:
+        raise ValueError(f"{what}: unknown {bad or value!r}; choose from {', '.join(all_names)} or 'all'")
+    return names
+
+
+def _sim(args: argparse.Namespace) -> int:
+    from hw_drivers.sim.tasks import TASK_NAMES
+    from pilworld.bench.sim import run_sim_bench
+    from pilworld.policies.scripted import CHECKPOINTS
+
+    tasks = _names(args.tasks, list(TASK_NAMES), "--tasks")
+    ckpts = _names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
+    result = run_sim_bench(
+        str(args.rig),
+        task=args.task,
+        subtasks=args.subtasks,
+        tasks=tasks,
+        checkpoints=ckpts,
+        workers=args.workers,
+        progress=not args.json,
+    )
+    print(
+        f"sim: {result['physics_steps_per_s']:.0f} physics steps/s, {result['render_ms_per_view']:.1f} ms per view, "
+        f"realtime factor {result['realtime_factor']:.1f}"
+    )
+    for task, rates in result.get("success_rates", {}).items():
+        print(f"  {task}: " + ", ".join(f"{c} {r:.2f}" for c, r in rates.items()))
     if args.json:
         print(json.dumps(result))
     return 0

@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, control_video, data
+from pilworld.cli import bench, control_video, data, sim
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -27,6 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
     control_video.register(sub)
     data.register(sub)
     bench.register(sub)
+    sim.register(sub)
     return parser
 
 

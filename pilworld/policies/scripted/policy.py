@@ -24,7 +24,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pilworld.config.rig import RigConfig
-from pilworld.kinematics.ur_dh import dh_params
 from pilworld.policies.scripted.knowledge import (
     Intent,
     Sightings,
@@ -105,6 +104,9 @@ class ScriptedPolicy:
             intent = None if held is None else know.intent_for(held, self.sightings, self.camera)
         else:
             intent = know.next_intent(self.sightings, self.camera)
+            if intent is not None and self.sightings.last.get(intent.obj) is None:
+                # Out of sight (a gripper hovers over it): memory may be stale, so clear the view first.
+                intent = None
             self._grasped = None if intent is None else intent.obj
         chunk = np.empty((self.horizon, STATE_DIM), dtype=np.float64)
         active: str | None = None
@@ -231,8 +233,10 @@ class ScriptedPolicy:
             Waypoint((gx, gy, high), yaw, 0.0, speed=0.6 * v),
         ]
         if aligned:
-            wps = wps[1:]
-        return planner.plan(q, 1.0 if not aligned else grip, wps + carry, self.horizon)
+            # Already above the grasp: go down, or, already down there, close right away (a grasp
+            # started in the previous chunk must not be undone by reopening).
+            wps = wps[2:] if abs(pos[2] - gz) < 0.01 else wps[1:]
+        return planner.plan(q, grip if aligned else 1.0, wps + carry, self.horizon)
 
     def _held_offset(
         self, know: StackBowlsKnowledge, intent: Intent, index: int, tcp: NDArray[np.float64], yaw: float
@@ -240,8 +244,8 @@ class ScriptedPolicy:
         """The held bowl's centre relative to the TCP: ±r along the closing axis, the sign from the image."""
         r = know.rim_radius(index)
         axis = np.array([math.sin(yaw), -math.cos(yaw)])
-        z = tcp[2] - know.grasp_height(index) + 0.5 * float(dh_params("ur5e").d[0]) * 0  # bowl base height
-        seen = know.held_xy(self.sightings, self.camera, intent.obj, z + 0.02)
+        base_z = tcp[2] - know.grasp_height(index)  # the held bowl's underside
+        seen = know.held_xy(self.sightings, self.camera, intent.obj, base_z + 0.02)
         cands = [r * axis, -r * axis]
         if seen is None or not np.all(np.isfinite(seen)):
             return cands[0]

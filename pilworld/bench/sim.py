@@ -1,0 +1,88 @@
+"""``pilworld bench sim``: physics and rendering speed of the simulated rig, and checkpoint success rates.
+
+* ``physics_steps_per_s``: MuJoCo steps per wall second (arms tracking a command, objects resting);
+* ``render_ms_per_view``: one 128×128 view rendered headless (mean over all cameras);
+* ``realtime_factor``: simulated time / wall time for one subtask with the best checkpoint in closed
+  loop and every Δ-th observation rendered (what data collection does), target ≥ 1;
+* ``success_rates`` (with ``--subtasks N``): {task: {checkpoint: rate}} over N subtask starts.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+from pilworld.types import ChunkSpec
+
+
+def run_sim_bench(
+    rig_path: str,
+    *,
+    task: str = "sort_cubes",
+    subtasks: int = 0,
+    tasks: list[str] | None = None,
+    checkpoints: list[str] | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    from hw_drivers.sim.robot import SimRobot, mujoco
+    from hw_drivers.sim.tasks import TASK_NAMES
+    from pilworld.collection.rollout import run_subtask
+    from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPolicy
+
+    spec = ChunkSpec()
+    robot = SimRobot(rig_path, task)
+    robot.connect()
+    try:
+        start = robot.reset(seed=0, subtask=0, history=0)
+        model, data = robot._model, robot._data  # the bench times raw physics, below the Robot contract
+        n = 5000
+        t0 = time.perf_counter()
+        for _ in range(n):
+            mujoco.mj_step(model, data)
+        physics = n / (time.perf_counter() - t0)
+        views = robot.spec.cameras
+        for v in views:
+            robot.render(v)  # warm-up
+        reps = 40
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            for v in views:
+                robot.render(v)
+        render_ms = (time.perf_counter() - t0) / (reps * len(views)) * 1000
+        start = robot.reset(seed=1, subtask=0, history=0)
+        policy = ScriptedPolicy(robot.rig, BEST_CHECKPOINT, seed=1)
+        sim0, t0 = robot.time, time.perf_counter()
+        run_subtask(robot, policy.infer, start.observation, robot.task.instruction, spec=spec, record=True)
+        wall = time.perf_counter() - t0
+        realtime = (robot.time - sim0) / wall
+    finally:
+        robot.disconnect()
+    result: dict[str, Any] = {
+        "rig": os.path.basename(rig_path),
+        "task": task,
+        "physics_steps_per_s": round(physics, 1),
+        "physics_timestep_s": float(model.opt.timestep),
+        "render_ms_per_view": round(render_ms, 3),
+        "image_size": list(robot.spec.image_size),
+        "realtime_factor": round(realtime, 2),
+        "subtask_wall_s": round(wall, 3),
+    }
+    if subtasks > 0:
+        from pilworld.collection.evaluate import success_rates
+
+        names = tasks or list(TASK_NAMES)
+        ckpts = checkpoints or [c.name for c in CHECKPOINTS]
+        t0 = time.perf_counter()
+        rates = success_rates(rig_path, names, ckpts, subtasks, workers=workers, spec=spec, progress=progress)
+        result["success_rates"] = rates
+        result["subtasks"] = subtasks
+        result["success_rates_wall_s"] = round(time.perf_counter() - t0, 1)
+        result["spread_ok"] = all(
+            max(r.values()) >= 0.9 and min(r.values()) <= 0.4 for r in rates.values()
+        )
+        result["mean_by_checkpoint"] = {c: round(float(np.mean([rates[t][c] for t in names])), 3) for c in ckpts}
+    return result
