@@ -25,6 +25,7 @@ from hw_drivers.sim.tasks import stack_bowls as sw
 from pilworld.perception.colour import Blob, ColourClass, largest_blob, segment
 
 GRASP_Z = 0.022  # TCP height for grasping a cube or block resting on the table [m]
+FULL_BLOCK_PX = 25  # a block's blob in the 128×128 head view when mostly visible (~35–55 px measured)
 XY = NDArray[np.float64]
 
 
@@ -55,6 +56,7 @@ class Sightings:
         self.keep = keep
         self.clear_px = clear_px
         self.uv: dict[str, XY] = {}
+        self.count: dict[str, int] = {}  # pixels of the blob each remembered centroid came from
         self.best: dict[str, int] = {}
         self.last: dict[str, Blob | None] = {}
 
@@ -71,10 +73,12 @@ class Sightings:
             moved = known is None or float(np.hypot(*(centre - known))) > self.clear_px
             if float(np.min(gaps)) > self.clear_px or moved:
                 self.best[c.name] = blob.n_pixels
-                self.uv[c.name] = centre
             elif blob.n_pixels >= self.keep * self.best.get(c.name, 0):
                 self.best[c.name] = max(self.best.get(c.name, 0), blob.n_pixels)
-                self.uv[c.name] = centre
+            else:
+                continue
+            self.uv[c.name] = centre
+            self.count[c.name] = blob.n_pixels
 
     def visible_fraction(self, name: str) -> float:
         blob = self.last.get(name)
@@ -161,7 +165,15 @@ class StackBlocksKnowledge(TaskKnowledge):
         """
         names = [n for n, _ in sb.BLOCKS]
         e = sb.BLOCK
-        tower: XY | None = _bp(camera, seen.uv[names[0]], e / 2) if names[0] in seen.uv else None
+        base = names[0]
+        # The base's own estimate is trusted only from a mostly visible blob: under a stacked block
+        # (seen from above) only a sliver of it shows, whose centroid is centimetres off.
+        tower: XY | None = None
+        loose: XY | None = None  # an untrusted estimate, good enough to tell "near" from "elsewhere"
+        if base in seen.uv:
+            loose = _bp(camera, seen.uv[base], e / 2)
+            if seen.count.get(base, 0) >= FULL_BLOCK_PX:
+                tower = loose
         out: list[tuple[str, Intent | None, bool]] = []
         stacked = True
         for level, name in enumerate(names[1:], start=1):
@@ -170,18 +182,21 @@ class StackBlocksKnowledge(TaskKnowledge):
                 stacked = False
                 continue
             on_tower = _bp(camera, seen.uv[name], e / 2 + level * e)
-            base_hidden = seen.visible_fraction(names[level - 1]) < 0.4
-            done = stacked and (
-                (tower is not None and _near(on_tower, tower, 0.025)) or (tower is None and base_hidden)
-            )
-            intent = None
             if tower is not None:
+                done = stacked and _near(on_tower, tower, 0.025)
+            elif loose is not None:  # the level below shows a sliver: this block sits on it if near it
+                done = stacked and _near(on_tower, loose, 0.045)
+            else:  # the base was never seen at all: only a block standing on it hides it completely
+                done = stacked and level == 1
+            intent = None
+            goal_xy = tower if tower is not None else loose
+            if goal_xy is not None:
                 xy = _bp(camera, seen.uv[name], e / 2)
-                goal = (float(tower[0]), float(tower[1]))
+                goal = (float(goal_xy[0]), float(goal_xy[1]))
                 intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, goal, GRASP_Z + level * e + 0.006)
             out.append((name, intent, done))
             if done:
-                tower = on_tower
+                tower = loose = on_tower
             else:
                 stacked = False
         return out

@@ -105,8 +105,11 @@ class ScriptedPolicy:
         else:
             intent = know.next_intent(self.sightings, self.camera)
             if intent is not None and self.sightings.last.get(intent.obj) is None:
-                # Out of sight (a gripper hovers over it): memory may be stale, so clear the view first.
-                intent = None
+                # Out of sight. Under a gripper where we remember it (we are reaching for it): trust the
+                # memory. Elsewhere the memory may be stale (it was moved out of view): clear the view.
+                remembered = np.asarray(intent.grasp_xyz[:2])
+                if min(float(np.hypot(*(t[:2] - remembered))) for t in tcps) > 0.03:
+                    intent = None
             self._grasped = None if intent is None else intent.obj
         chunk = np.empty((self.horizon, STATE_DIM), dtype=np.float64)
         active: str | None = None
