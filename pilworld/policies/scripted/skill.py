@@ -29,10 +29,10 @@ class Checkpoint:
 
 # Ordered worst → best; names read like the training steps of a VLA fine-tune.
 CHECKPOINTS: tuple[Checkpoint, ...] = (
-    Checkpoint("scripted_step_01k", 0.0),
-    Checkpoint("scripted_step_02k", 0.35),
-    Checkpoint("scripted_step_05k", 0.6),
-    Checkpoint("scripted_step_10k", 0.8),
+    Checkpoint("scripted_step_01k", 0.15),
+    Checkpoint("scripted_step_02k", 0.45),
+    Checkpoint("scripted_step_05k", 0.65),
+    Checkpoint("scripted_step_10k", 0.82),
     Checkpoint("scripted_step_30k", 1.0),
 )
 BEST_CHECKPOINT = CHECKPOINTS[-1].name
