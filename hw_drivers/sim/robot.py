@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from hw_drivers.robot import DeviceNotConnectedError
 from hw_drivers.sim.gl import make_renderer, mujoco
+from hw_drivers.sim.poses import HOME_Q14
 from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, settings_for
 from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
 from pilworld.config.rig import RigConfig
@@ -32,14 +33,6 @@ DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dua
 ARM_SPEED = math.pi  # rad/s, a UR e-Series joint's maximum
 GRIP_SPEED = 2.0  # normalised opening per second (full stroke in 0.5 s)
 SETTLE_S = 0.5  # physics time given to a new layout before the lead-in
-
-
-# Both grippers open and pointing down at (−0.08, ±0.34, 0.16) m, beside and above the workspace, so
-# the arms hide as little of the table as possible from the head camera (solved with pilworld's IK).
-HOME_Q14 = np.array(
-    [-0.2586, -1.8292, 2.26, -2.0016, -1.5708, 0.0414, 1.0, -0.474, -1.8292, 2.26, -2.0016, -1.5708, -0.284, 1.0],
-    dtype=np.float64,
-)
 
 
 @dataclass(frozen=True)

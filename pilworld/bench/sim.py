@@ -9,8 +9,8 @@
 
 from __future__ import annotations
 
-import os
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,7 +28,8 @@ def run_sim_bench(
     workers: int | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
-    from hw_drivers.sim.robot import SimRobot, mujoco
+    from hw_drivers.sim.gl import mujoco
+    from hw_drivers.sim.robot import SimRobot
     from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.collection.rollout import run_subtask
     from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPolicy
@@ -62,7 +63,7 @@ def run_sim_bench(
     finally:
         robot.disconnect()
     result: dict[str, Any] = {
-        "rig": os.path.basename(rig_path),
+        "rig": Path(rig_path).name,
         "task": task,
         "physics_steps_per_s": round(physics, 1),
         "physics_timestep_s": float(model.opt.timestep),
@@ -81,8 +82,6 @@ def run_sim_bench(
         result["success_rates"] = rates
         result["subtasks"] = subtasks
         result["success_rates_wall_s"] = round(time.perf_counter() - t0, 1)
-        result["spread_ok"] = all(
-            max(r.values()) >= 0.9 and min(r.values()) <= 0.4 for r in rates.values()
-        )
+        result["spread_ok"] = all(max(r.values()) >= 0.9 and min(r.values()) <= 0.4 for r in rates.values())
         result["mean_by_checkpoint"] = {c: round(float(np.mean([rates[t][c] for t in names])), 3) for c in ckpts}
     return result

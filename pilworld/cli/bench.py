@@ -41,7 +41,9 @@ def register(sub: Any) -> None:
     dt.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     dt.set_defaults(handler=_data)
 
-    sm = benches.add_parser("sim", help="simulated rig: physics steps/s, render ms/view, realtime factor, success rates")
+    sm = benches.add_parser(
+        "sim", help="simulated rig: physics steps/s, render ms/view, realtime factor, success rates"
+    )
     sm.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     sm.add_argument("--task", default="sort_cubes", help="task for the speed figures (default sort_cubes)")
     sm.add_argument("--subtasks", type=int, default=0, help="also measure success rates over N subtask starts per task")

@@ -88,5 +88,7 @@ def _show(args: argparse.Namespace) -> int:
     if args.scale > 1:
         row = np.repeat(np.repeat(row, args.scale, axis=0), args.scale, axis=1)
     write_png(row, args.out)
-    print(f"sim show: {args.task} seed {args.seed} subtask {args.subtask} → {args.out} ({', '.join(robot.spec.cameras)})")
+    print(
+        f"sim show: {args.task} seed {args.seed} subtask {args.subtask} → {args.out} ({', '.join(robot.spec.cameras)})"
+    )
     return 0

@@ -43,7 +43,7 @@ HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest
 
 def _home() -> NDArray[np.float64]:
     # The simulated rig's home pose (hw_drivers.sim.robot.HOME_Q14), as a policy's "rest" prior.
-    from hw_drivers.sim.robot import HOME_Q14
+    from hw_drivers.sim.poses import HOME_Q14
 
     return HOME_Q14.copy()
 
