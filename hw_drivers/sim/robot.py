@@ -148,7 +148,9 @@ class SimRobot:
         out = np.empty(STATE_DIM, dtype=np.float64)
         for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
             out[arm] = q[self._arm_qadr[side]]
-            out[grip] = q[self._finger_qadr[side]].sum() / (2 * self._half_open[side])
+            # Clipped like a real gripper's position report: contact can push a finger a hair past its stop.
+            gap = q[self._finger_qadr[side]].sum() / (2 * self._half_open[side])
+            out[grip] = min(1.0, max(0.0, gap))
         return out.astype(np.float32)
 
     def render(self, camera: str) -> NDArray[np.uint8]:
@@ -220,8 +222,9 @@ class SimRobot:
         self.set_object_poses(self.task.completed_poses(self.layout, subtask))
         rng = np.random.default_rng([seed, subtask, 7])
         start_q = HOME_Q14.copy()
-        for arm in (LEFT_ARM, RIGHT_ARM):
-            start_q[arm] += rng.uniform(-0.12, 0.12, 6) * np.array([1, 1, 1, 0.5, 0.5, 0.5])
+        if history > 0:  # the lead-in moves home from a seeded perturbation; without one, start at home
+            for arm in (LEFT_ARM, RIGHT_ARM):
+                start_q[arm] += rng.uniform(-0.12, 0.12, 6) * np.array([1, 1, 1, 0.5, 0.5, 0.5])
         self._set_arm_qpos(start_q)
         self._target = start_q.copy()
         self._apply_ctrl(start_q)

@@ -176,7 +176,7 @@ def _gripper_xml(side: str, arm: ArmConfig, rig: RigConfig, s: SceneSettings, ac
         lines.append(f'<body name="{joint}" pos="0 0 {FINGER_CENTRE_BELOW_TCP}" gravcomp="1">')
         lines.append(
             f'<joint name="{joint}" type="slide" axis="0 {sign:.0f} 0" range="0 {half_open:.6g}" damping="5" '
-            'armature="0.05"/>'
+            'armature="0.05" solreflimit="0.002 1" solimplimit="0.99 0.999 0.001"/>'
         )
         lines.append(
             f'<geom name="{joint}_pad" type="box" size="{_f(FINGER_HALF)}" pos="0 {sign * FINGER_HALF[1]:.6g} 0" '

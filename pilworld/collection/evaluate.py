@@ -25,7 +25,7 @@ def _evaluate_one(args: tuple[str, str, str, int, int, ChunkSpec]) -> tuple[str,
 
     robot = _robot(rig_path, task)
     policy = ScriptedPolicy(robot.rig, checkpoint, seed=seed * 100 + subtask, horizon=spec.horizon)
-    start = robot.reset(seed=seed, subtask=subtask, history=0, stride=spec.stride)
+    start = robot.reset(seed=seed, subtask=subtask, history=spec.history, stride=spec.stride)
     rec = run_subtask(
         robot, policy.infer, start.observation, robot.task.instruction, spec=spec, record=False, subtask_index=subtask
     )

@@ -3,6 +3,7 @@ filter, the privileged subtask checker, determinism and argument errors."""
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -97,7 +98,7 @@ def test_task_reset_step_observe(robots: Callable[[str], SimRobot], task: str) -
         assert start.subtask.instruction == TASKS[task].instruction and start.subtask.seed == subtask + 1
         assert len(start.history) == 5
         stamps = [o.timestamp for o in (*start.history, start.observation)]
-        assert all(b > a for a, b in zip(stamps, stamps[1:], strict=False)), stamps
+        assert all(b > a for a, b in itertools.pairwise(stamps)), stamps
         np.testing.assert_allclose(np.diff(stamps[:-1]), 3 / 30, atol=1e-9)  # stride Δ at 30 Hz
         for obs in (*start.history, start.observation):
             assert set(obs.views) == set(start.observation.views)

@@ -41,16 +41,14 @@ def rig() -> RigConfig:
 def test_tcp_sites_match_the_kinematics(rig: RigConfig) -> None:
     model = mujoco.MjModel.from_xml_string(build_mjcf(rig))
     data = mujoco.MjData(model)
-    qadr = {
-        side: np.array([model.joint(f"{side}_joint_{i}").qposadr[0] for i in range(1, 7)]) for side, _, _ in SIDES
-    }
+    qadr = {side: np.array([model.joint(f"{side}_joint_{i}").qposadr[0] for i in range(1, 7)]) for side, _, _ in SIDES}
     site = {side: model.site(f"{side}_tcp").id for side, _, _ in SIDES}
     rng = np.random.default_rng(1234)
     q14s = rng.uniform(-np.pi, np.pi, size=(100, 14))
     expected = rig.kinematics.tcp_poses(q14s)  # (100, 2, 4, 4)
     pos_err, rot_err = 0.0, 0.0
     for n, q14 in enumerate(q14s):
-        for side, arm, k in SIDES:
+        for side, arm, _ in SIDES:
             data.qpos[qadr[side]] = q14[arm]
         mujoco.mj_kinematics(model, data)
         for side, _, k in SIDES:
@@ -74,9 +72,7 @@ def _magenta(image: np.ndarray) -> np.ndarray:
 def test_cam_high_renders_points_where_the_camera_model_projects_them(rig: RigConfig) -> None:
     rng = np.random.default_rng(7)
     n, radius = 30, 0.01
-    points = np.column_stack(
-        [rng.uniform(-0.2, 0.3, n), rng.uniform(-0.3, 0.3, n), rng.uniform(0.0, 0.3, n)]
-    )
+    points = np.column_stack([rng.uniform(-0.2, 0.3, n), rng.uniform(-0.3, 0.3, n), rng.uniform(0.0, 0.3, n)])
     markers = [(f"marker_{i}", (float(p[0]), float(p[1]), float(p[2])), radius) for i, p in enumerate(points)]
     model = mujoco.MjModel.from_xml_string(build_mjcf(rig, markers=markers))
     data = mujoco.MjData(model)
@@ -163,8 +159,8 @@ def test_calibrated_camera_file_without_distortion_is_accepted(tmp_path: Path) -
     cam_file = tmp_path / "cam.yaml"
     base.to_yaml(cam_file)
     rig = _rig_with_camera_file(tmp_path, cam_file)
-    model = compile_scene(build_mjcf(rig))
-    assert model.camera("cam_high").id >= 0  # type: ignore[attr-defined]
+    model: Any = compile_scene(build_mjcf(rig))
+    assert model.camera("cam_high").id >= 0
 
 
 # ---------------------------------------------------------------------- objects

@@ -3,6 +3,7 @@ head camera shows, never on simulator state), graded checkpoints and their error
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -125,7 +126,9 @@ def test_unknown_instruction_lists_the_known_ones(robots: Callable[[str], SimRob
 # ---------------------------------------------------------------------- observation-only (acceptance)
 
 
-def _blind(infer: Callable[[Observation, str], NDArray[np.float32]]) -> Callable[[Observation, str], NDArray[np.float32]]:
+def _blind(
+    infer: Callable[[Observation, str], NDArray[np.float32]],
+) -> Callable[[Observation, str], NDArray[np.float32]]:
     """The policy with its head camera covered: ``cam_high`` is all zeros in every observation it gets."""
 
     def wrapped(obs: Observation, instruction: str) -> NDArray[np.float32]:
@@ -158,7 +161,7 @@ def test_policies_depend_on_the_head_image(robots: Callable[[str], SimRobot], ta
 
 def test_checkpoints_are_ordered_and_named() -> None:
     skills = [c.skill for c in CHECKPOINTS]
-    assert all(0.0 <= a < b <= 1.0 for a, b in zip(skills, skills[1:], strict=False))  # worst → best
+    assert all(0.0 <= a < b <= 1.0 for a, b in itertools.pairwise(skills))  # worst → best
     assert skills[-1] == 1.0
     assert BEST_CHECKPOINT == CHECKPOINTS[-1].name == "scripted_step_30k"
     assert len({c.name for c in CHECKPOINTS}) == len(CHECKPOINTS)
