@@ -271,6 +271,27 @@ class SimRobot:
             )
         return out
 
+    def task_state(self) -> dict[str, Any]:
+        """Privileged task state for judges and logs (JSON-friendly): layout, object poses, placements.
+
+        ``placed[k]`` says whether subtask k's object sits at its goal right now (no settling check;
+        use :meth:`check_subtask` for the full verdict).
+        """
+        self._require()
+        if self.layout is None or self.subtask is None:
+            raise ValueError("task_state: no task laid out; call reset() first")
+        poses = self.object_poses()
+        placed = [self.task.in_place(self.layout, poses, k).in_place for k in range(self.task.num_subtasks)]
+        return {
+            "task": self.task.name,
+            "seed": self.layout.seed,
+            "subtask": self.subtask.index,
+            "time": self.time,
+            "objects": {n: {"xyz": list(p.xyz), "quat": list(p.quat)} for n, p in poses.items()},
+            "placed": placed,
+            "held": {n: self.held_by(n) for n in poses},
+        }
+
     def held_by(self, name: str, data: Any = None) -> str | None:
         """The arm whose two fingers both touch object ``name`` (a pinch), or None.
 

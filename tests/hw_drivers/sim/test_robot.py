@@ -4,7 +4,7 @@ filter, the privileged subtask checker, determinism and argument errors."""
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -21,22 +21,6 @@ SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
 ARM = np.r_[LEFT_ARM, RIGHT_ARM]  # the 12 arm joints of the 14-d vector
 GRIPS = np.array([LEFT_GRIP, RIGHT_GRIP])
 SIZE = (128, 128, 3)
-
-
-@pytest.fixture(scope="module")
-def robots() -> Iterator[Callable[[str], SimRobot]]:
-    """One connected robot per task, shared by the module (connect costs ~0.2 s)."""
-    made: dict[str, SimRobot] = {}
-
-    def get(task: str) -> SimRobot:
-        if task not in made:
-            made[task] = SimRobot(SIM, task)
-            made[task].connect()
-        return made[task]
-
-    yield get
-    for robot in made.values():
-        robot.disconnect()
 
 
 def _check_observation(robot: SimRobot, obs: Observation) -> None:
@@ -306,3 +290,26 @@ def test_invalid_subtask_index_for_a_two_subtask_task(robots: Callable[[str], Si
 def test_invalid_seed_is_refused(robots: Callable[[str], SimRobot], seed: object) -> None:
     with pytest.raises(ValueError, match="seed: expected an integer, got"):
         robots("sort_cubes").reset(seed=seed, subtask=0)  # type: ignore[arg-type]
+
+
+def test_task_state_is_json_and_privileged(robots: Callable[[str], SimRobot]) -> None:
+    import json
+
+    robot = robots("sort_cubes")
+    robot.reset(seed=2, subtask=1, history=0)
+    state = json.loads(json.dumps(robot.task_state()))
+    assert state["task"] == "sort_cubes" and state["seed"] == 2 and state["subtask"] == 1
+    assert set(state["objects"]) == {"cube_small", "cube_medium", "cube_large"}
+    assert state["placed"] == [True, False, False]  # subtask 0 was laid out as done
+    assert all(v is None for v in state["held"].values())
+
+
+def test_render_error_names_the_fix(monkeypatch: pytest.MonkeyPatch) -> None:
+    from hw_drivers.sim import gl
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("gladLoadGL error")
+
+    monkeypatch.setattr(gl.mujoco, "Renderer", broken)
+    with pytest.raises(gl.SimRenderError, match=r"libegl1.*MUJOCO_GL=osmesa"):
+        gl.make_renderer(object(), 128, 128)

@@ -4,7 +4,7 @@ head camera shows, never on simulator state), graded checkpoints and their error
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -22,22 +22,6 @@ ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
 ARM = np.r_[LEFT_ARM, RIGHT_ARM]
 INSTRUCTIONS = [TASKS[t].instruction for t in TASK_NAMES]
-
-
-@pytest.fixture(scope="module")
-def robots() -> Iterator[Callable[[str], SimRobot]]:
-    """One connected robot per task, shared by the module."""
-    made: dict[str, SimRobot] = {}
-
-    def get(task: str) -> SimRobot:
-        if task not in made:
-            made[task] = SimRobot(SIM, task)
-            made[task].connect()
-        return made[task]
-
-    yield get
-    for robot in made.values():
-        robot.disconnect()
 
 
 def _check_chunk(robot: SimRobot, chunk: NDArray[np.float32], state: NDArray[np.float32]) -> None:
