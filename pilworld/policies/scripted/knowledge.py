@@ -31,15 +31,12 @@ XY = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Intent:
-    """The next pick-and-place: which object, the TCP grasp pose, and the object's goal centre."""
+    """The next pick-and-place: which object, the TCP grasp point, and the object's goal centre."""
 
     obj: str
     grasp_xyz: tuple[float, float, float]
-    grasp_yaw: float | None  # None: the policy picks a convenient yaw (boxes are 90° symmetric)
     goal_xy: tuple[float, float]  # where the object's centre must end up
-    release_z: float  # TCP height at release [m]
-    # For rim grasps: the object's centre relative to the TCP (rig frame xy) when held as planned.
-    held_offset: tuple[float, float] = (0.0, 0.0)
+    release_z: float  # TCP height at release [m] (bowls: recomputed from the rim grasp)
 
 
 class Sightings:
@@ -146,7 +143,7 @@ class SortCubesKnowledge(TaskKnowledge):
                 out.append((name, None, False))  # never seen: cannot act on it
                 continue
             xy = _bp(camera, uv, edge / 2)
-            intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, slot, GRASP_Z + 0.008)
+            intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), slot, GRASP_Z + 0.008)
             out.append((name, intent, _near(xy, slot, 0.025)))
         return out
 
@@ -193,7 +190,7 @@ class StackBlocksKnowledge(TaskKnowledge):
             if goal_xy is not None:
                 xy = _bp(camera, seen.uv[name], e / 2)
                 goal = (float(goal_xy[0]), float(goal_xy[1]))
-                intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), None, goal, GRASP_Z + level * e + 0.006)
+                intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), goal, GRASP_Z + level * e + 0.006)
             out.append((name, intent, done))
             if done:
                 tower = loose = on_tower
@@ -234,7 +231,7 @@ class StackBowlsKnowledge(TaskKnowledge):
             if target is not None:
                 xy = _bp(camera, uv, h / 2)
                 goal = (float(target[0]), float(target[1]))
-                intent = Intent(name, (float(xy[0]), float(xy[1]), self.grasp_height(k)), 0.0, goal, 0.0)
+                intent = Intent(name, (float(xy[0]), float(xy[1]), self.grasp_height(k)), goal, 0.0)
             out.append((name, intent, done))
             stacked = done
             target = nested if done else None

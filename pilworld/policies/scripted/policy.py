@@ -23,6 +23,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from hw_drivers.sim.tasks.stack_bowls import nested_base_height
 from pilworld.config.rig import RigConfig
 from pilworld.policies.scripted.knowledge import (
     Intent,
@@ -193,8 +194,6 @@ class ScriptedPolicy:
             base_xy = getattr(self.rig.kinematics, side).T_rig_base[:2, 3]
             (gx, gy, gz), yaw, off = know.rim_grasp(index, np.array([gx, gy]), base_xy)
             offset = np.asarray(off)
-            from hw_drivers.sim.tasks.stack_bowls import nested_base_height
-
             release_z = nested_base_height(index) + know.grasp_height(index) + 0.01
             if carrying:
                 # Keep the yaw we hold it with; the bowl's centre lies along the closing axis.

@@ -196,3 +196,22 @@ def test_policy_reset_draws_the_episode_errors(robots: Callable[[str], SimRobot]
     worst.reset(seed=6)
     assert not np.array_equal(worst.infer(obs, robot.task.instruction), first)
     assert worst.seed == 6 and worst.name == "scripted_step_01k"
+
+
+def test_scripted_policies_cannot_reach_the_simulator() -> None:
+    """Observation-only by construction: no policy module imports MuJoCo or the simulated robot."""
+    import ast
+
+    forbidden = ("mujoco", "hw_drivers.sim.robot", "hw_drivers.sim.gl", "hw_drivers.sim.scene")
+    package = Path(__file__).resolve().parents[3] / "pilworld" / "policies" / "scripted"
+    files = sorted(package.glob("*.py"))
+    assert files
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            bad = [n for n in names if any(n == f or n.startswith(f + ".") for f in forbidden)]
+            assert not bad, f"{path.name} imports {bad}: a scripted policy must see observations only"
