@@ -49,9 +49,11 @@ class Sightings:
     where the object was remembered (it was carried there).
     """
 
-    def __init__(self, keep: float = 0.75, clear_px: float = 14.0) -> None:
+    def __init__(self, keep: float = 0.75, clear_px: float = 14.0, image_width: int = 128) -> None:
         self.keep = keep
-        self.clear_px = clear_px
+        # Pixel thresholds are tuned at 128×128 and scale with the image (lengths by width, areas by its square).
+        self.scale = image_width / 128.0
+        self.clear_px = clear_px * self.scale
         self.uv: dict[str, XY] = {}
         self.count: dict[str, int] = {}  # pixels of the blob each remembered centroid came from
         self.best: dict[str, int] = {}
@@ -169,7 +171,7 @@ class StackBlocksKnowledge(TaskKnowledge):
         loose: XY | None = None  # an untrusted estimate, good enough to tell "near" from "elsewhere"
         if base in seen.uv:
             loose = _bp(camera, seen.uv[base], e / 2)
-            if seen.count.get(base, 0) >= FULL_BLOCK_PX:
+            if seen.count.get(base, 0) >= FULL_BLOCK_PX * seen.scale**2:
                 tower = loose
         out: list[tuple[str, Intent | None, bool]] = []
         stacked = True

@@ -68,7 +68,7 @@ class ScriptedPolicy:
         self.home = _home()
         self._knowledge: dict[str, TaskKnowledge] = {}
         self.seed = seed
-        self.sightings = Sightings()
+        self.sightings = Sightings(image_width=self.camera.width)
         self._grasped: str | None = None  # the object this policy last went to grasp
 
     @property
@@ -79,7 +79,7 @@ class ScriptedPolicy:
         """Forget remembered sightings; ``seed`` draws this episode's mistakes (see ``skill.py``)."""
         if seed is not None:
             self.seed = seed
-        self.sightings = Sightings()
+        self.sightings = Sightings(image_width=self.camera.width)
         self._grasped = None
 
     def knowledge(self, instruction: str) -> TaskKnowledge:
