@@ -121,7 +121,9 @@ def dataset_spec(rig_path: str, video_mode: str, spec: ChunkSpec) -> DatasetSpec
     if abs(fps - round(fps)) > 1e-9:
         raise ValueError(f"control rate {rig.control_rate_hz} Hz / stride {spec.stride} is not an integer frame rate")
     size = (rig.image_size.height, rig.image_size.width)
-    return DatasetSpec(fps=round(fps), views={v: size for v in rig.cameras}, video_mode=video_mode)
+    return DatasetSpec(
+        fps=round(fps), views={v: size for v in rig.cameras}, video_mode=video_mode, steps_per_frame=spec.stride
+    )
 
 
 def stored_parts(root: Path) -> dict[str, set[int]]:

@@ -77,7 +77,8 @@ class ClipDataset(Dataset[dict[str, Any]]):
         success_judge: str | None = None,
     ) -> None:
         self.store = EpisodeStore(root)
-        self.spec = spec or ClipSpec()
+        # By default the paper's Δ = 3 control steps, in the dataset's stored frames.
+        self.spec = spec or ClipSpec.for_dataset(self.store.spec.steps_per_frame)
         self.views = views or list(self.store.spec.views)
         unknown = [v for v in self.views if v not in self.store.spec.views]
         if unknown:

@@ -44,6 +44,20 @@ class ClipSpec:
         if isinstance(self.history, bool) or not isinstance(self.history, int) or self.history < 0:
             raise ValueError(f"history: expected an integer >= 0, got {self.history!r}")
 
+    @classmethod
+    def for_dataset(cls, steps_per_frame: int, control_stride: int = 3, **kwargs: int | bool) -> ClipSpec:
+        """The clip spec in *stored* frames for a dataset keeping every ``steps_per_frame``-th control step.
+
+        The paper's Δ = ``control_stride`` control steps; a dataset recorded at the stride (the simulated
+        rig's collector) therefore has ``stride = 1``.
+        """
+        if control_stride % steps_per_frame:
+            raise ValueError(
+                f"stride: the dataset stores every {steps_per_frame}-th control step, which does not divide "
+                f"the stride of {control_stride} control steps"
+            )
+        return cls(stride=control_stride // steps_per_frame, **kwargs)  # type: ignore[arg-type]
+
     @property
     def span(self) -> int:
         """K·Δ: frames from the current frame to the last future frame."""

@@ -53,6 +53,9 @@ class DatasetSpec:
     action_names: tuple[str, ...] = dual_arm_joint_names()
     video_mode: str = "h264"  # h264 | lossless | av1 (see pilworld.data.video_codec)
     robot_type: str = "dual_ur5e"
+    # Control steps between stored frames: 1 = every step (frames at the control rate); the simulated
+    # rig's collector stores every Δ-th step (3), so its clips use stride 1 (see ClipSpec.for_dataset).
+    steps_per_frame: int = 1
 
     def __post_init__(self) -> None:
         if isinstance(self.fps, bool) or not isinstance(self.fps, int) or not 0 < self.fps <= 1000:
@@ -68,6 +71,9 @@ class DatasetSpec:
             names = getattr(self, name)
             if not names or len(set(names)) != len(names):
                 raise ValueError(f"{name}: expected unique non-empty names, got {names!r}")
+        spf = self.steps_per_frame
+        if isinstance(spf, bool) or not isinstance(spf, int) or spf < 1:
+            raise ValueError(f"steps_per_frame: expected an integer >= 1, got {spf!r}")
         if self.video_mode not in VIDEO_MODES:
             raise ValueError(f"video_mode: expected one of {list(VIDEO_MODES)}, got {self.video_mode!r}")
         settings = codec_settings(self.video_mode)
@@ -125,6 +131,7 @@ class DatasetSpec:
             "action_names": list(self.action_names),
             "video_mode": self.video_mode,
             "robot_type": self.robot_type,
+            "steps_per_frame": self.steps_per_frame,
         }
 
     @classmethod
@@ -139,6 +146,7 @@ class DatasetSpec:
                 action_names=tuple(data["action_names"]),
                 video_mode=data["video_mode"],
                 robot_type=data.get("robot_type", ""),
+                steps_per_frame=int(data.get("steps_per_frame", 1)),
             )
         except KeyError as err:
             raise ValueError(f"{source}: missing field {err.args[0]!r}") from None

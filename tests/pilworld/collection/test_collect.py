@@ -95,6 +95,20 @@ def test_collect_stores_one_episode_per_subtask(collected: tuple[Path, dict[str,
     assert frames.shape == (FRAMES, 128, 128, 3)
 
 
+def test_collected_clips_use_the_paper_stride_in_stored_frames(collected: tuple[Path, dict[str, Any]]) -> None:
+    from pilworld.data.clip_dataset import ClipDataset
+
+    root, _ = collected
+    store = EpisodeStore(root)
+    assert store.spec.steps_per_frame == SPEC.stride  # every Δ-th control step is stored
+    clips = ClipDataset(root, cache_dir=root / "cache")
+    assert clips.spec.stride == 1 and clips.spec.future == 15 and clips.spec.window == 9
+    # 76 frames: clips start every 9 stored frames while 15 future frames fit: t = 0, 9, …, 54.
+    assert len(clips) == 4 * len(range(0, FRAMES - 15, 9))
+    item = clips[1]
+    assert item["future"].shape == (3, 15, 3, 128, 128) and item["actions"].shape == (15, 14)
+
+
 def test_outcomes_are_the_checkers_verdicts(collected: tuple[Path, dict[str, Any]]) -> None:
     root, summary = collected
     outcomes = read_outcomes(root)

@@ -115,3 +115,13 @@ def test_sampler_mixes_success_and_failure(dataset: Path, tmp_path: Path) -> Non
     assert 0.45 < failure_share < 0.55  # 1 failed clip of 4, drawn half the time
     with pytest.raises(ValueError, match="views"):
         ClipDataset(dataset, views=["cam_top"])
+
+
+def test_clip_spec_for_a_dataset_recorded_at_the_stride() -> None:
+    from pilworld.data.clips import ClipSpec
+
+    assert ClipSpec.for_dataset(1).stride == 3  # frames at the control rate: Δ = 3 frames
+    assert ClipSpec.for_dataset(3).stride == 1  # frames at the stride: Δ = 1 stored frame
+    assert ClipSpec.for_dataset(3, future=10).future == 10
+    with pytest.raises(ValueError, match="does not divide"):
+        ClipSpec.for_dataset(2)
