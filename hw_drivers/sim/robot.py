@@ -205,15 +205,29 @@ class SimRobot:
         """The last applied command (the target the servos track)."""
         return self._target.astype(np.float32)
 
-    def reset(self, seed: int = 0, subtask: int = 0, *, history: int = 5, stride: int = 3) -> Start:
+    def reset(
+        self, seed: int = 0, subtask: int = 0, *, task: str | Task | None = None, history: int = 5, stride: int = 3
+    ) -> Start:
         """Lay out the task for ``seed`` with subtasks before ``subtask`` done; return the shared start.
 
-        The arms begin slightly away from home (seeded) and move home over ``history·stride`` control
-        steps while the history frames are recorded every ``stride`` steps (oldest first); the start
-        observation follows the last step.
+        ``task`` switches to another task first (the scene is rebuilt: ~0.2 s). The arms begin slightly
+        away from home (seeded) and move home over ``history·stride`` control steps while the history
+        frames are recorded every ``stride`` steps (oldest first); the start observation follows the
+        last step. With ``history=0`` the arms start at home.
         """
         self._require()
+        if task is not None:
+            new = make_task(task) if isinstance(task, str) else task
+            if new.name != self.task.name:
+                new.check_index(subtask)
+                self.disconnect()
+                self.task = new
+                self.xml = build_mjcf(self.rig, new.objects(), new.fixtures())
+                self.connect()
         self.task.check_index(subtask)
+        for name, value in (("history", history), ("stride", stride)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < (0 if name == "history" else 1):
+                raise ValueError(f"{name}: expected an integer >= {0 if name == 'history' else 1}, got {value!r}")
         if isinstance(seed, bool) or not isinstance(seed, int):
             raise ValueError(f"seed: expected an integer, got {seed!r}")
         m, d = self._model, self._data

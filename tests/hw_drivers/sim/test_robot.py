@@ -313,3 +313,16 @@ def test_render_error_names_the_fix(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(gl.mujoco, "Renderer", broken)
     with pytest.raises(gl.SimRenderError, match=r"libegl1.*MUJOCO_GL=osmesa"):
         gl.make_renderer(object(), 128, 128)
+
+
+def test_reset_can_switch_task() -> None:
+    with SimRobot(SIM, "sort_cubes") as robot:
+        start = robot.reset(seed=1, subtask=1, task="stack_blocks", history=0)
+        assert robot.task.name == "stack_blocks" and start.subtask.task == "stack_blocks"
+        assert set(robot.object_poses()) == {"block_red", "block_sky", "block_green"}
+        assert robot.check_subtask(0).success  # subtask 0 laid out as done
+        with pytest.raises(ValueError, match=r"stack_bowls has subtasks 0\.\.2"):
+            robot.reset(subtask=5, task="stack_bowls")
+        assert robot.task.name == "stack_blocks"  # a refused switch leaves the robot as it was
+        with pytest.raises(ValueError, match="history"):
+            robot.reset(history=-1)
