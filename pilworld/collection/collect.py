@@ -29,7 +29,7 @@ from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.spec import DatasetSpec
 from pilworld.data.writer import EpisodeWriter
-from pilworld.types import ChunkSpec
+from pilworld.types import ChunkSpec, Subtask
 
 JUDGE_ID = "sim_checker"
 
@@ -86,9 +86,11 @@ def simulate_run(rig_path: str, job: RunJob, spec: ChunkSpec) -> list[PartResult
     obs = start.observation
     parts = []
     n = robot.task.num_subtasks
+    # One continuous episode: the policy keeps its memory across subtask boundaries (a gripper may be
+    # half open when a window ends); only the checker's windows are per subtask.
+    policy.reset(seed=job.seed * 100)
     for k in range(n):
-        policy.reset(seed=job.seed * 100 + k)
-        robot.subtask = start.subtask.__class__(job.task, k, robot.task.instruction, job.seed)
+        robot.subtask = Subtask(job.task, k, robot.task.instruction, job.seed)
         rec = run_subtask(robot, policy.infer, obs, robot.task.instruction, spec=spec, subtask_index=k)
         assert rec.check is not None
         parts.append(

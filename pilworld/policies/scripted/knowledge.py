@@ -218,25 +218,33 @@ class StackBowlsKnowledge(TaskKnowledge):
         return sw.BOWLS[index][2]  # the lip stands at the top radius
 
     def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
-        target: XY | None = np.asarray(sw.STACK_XY, dtype=np.float64)
-        out: list[tuple[str, Intent | None, bool]] = []
-        stacked = True
+        """Bowls go onto the fixed stacking mark, so each is judged against the mark itself.
+
+        A bowl nested at the mark implies every bigger bowl is under it: that catches the large bowl
+        whose visible ring, half hidden by a gripper, would otherwise look off the mark.
+        """
+        mark = np.asarray(sw.STACK_XY, dtype=np.float64)
+        nested: list[XY | None] = []
         for k, (name, _, _, h, _, _) in enumerate(sw.BOWLS):
             uv = seen.uv.get(name)
-            if uv is None:
-                out.append((name, None, False))
-                stacked, target = False, None
-                continue
-            nested = _bp(camera, uv, sw.nested_base_height(k) + h / 2)
-            done = stacked and target is not None and _near(nested, target, 0.02)
+            nested.append(None if uv is None else _bp(camera, uv, sw.nested_base_height(k) + h / 2))
+        at_mark = [p is not None and _near(p, mark, 0.025) for p in nested]
+        out: list[tuple[str, Intent | None, bool]] = []
+        stacked = True
+        target: XY | None = mark
+        for k, (name, _, _, h, _, _) in enumerate(sw.BOWLS):
+            done = stacked and any(at_mark[k:])
+            uv = seen.uv.get(name)
             intent = None
-            if target is not None:
+            if uv is not None and target is not None:
                 xy = _bp(camera, uv, h / 2)
                 goal = (float(target[0]), float(target[1]))
                 intent = Intent(name, (float(xy[0]), float(xy[1]), self.grasp_height(k)), goal, 0.0)
             out.append((name, intent, done))
             stacked = done
-            target = nested if done else None
+            # The next bowl goes into this one: aim at where it is seen, else at the mark.
+            here = nested[k]
+            target = (here if here is not None and at_mark[k] else mark) if done else None
         return out
 
     def rim_grasp(

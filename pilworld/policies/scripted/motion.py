@@ -18,7 +18,7 @@ from pilworld.geometry import invert_transform
 from pilworld.kinematics.dual_arm import ArmMount
 from pilworld.kinematics.ik import ik_nearest
 
-YAW_RATE = 1.5  # rad/s, peak tool yaw rate
+YAW_RATE = 3.0  # rad/s, peak tool yaw rate (a UR wrist turns at up to π rad/s)
 GRIP_RATE = 1.8  # normalised opening per second: a bit below the simulated gripper's 2/s
 
 

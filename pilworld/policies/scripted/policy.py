@@ -11,8 +11,9 @@ state) and the instruction — never the simulator — and returns ``H_π × 14`
    continue into the carry in the same chunk (a chunked policy commits to its plan until the next
    query). The other arm returns home. Motions are solved with closed-form IK.
 
-Its only memory is where objects were last fully seen (objects vanish under a gripper seen from above)
-and which object it last went to grasp (the fingers hide what they hold); call
+Its only memory is where objects were last fully seen (objects vanish under a gripper seen from above),
+which object it last went to grasp (the fingers hide what they hold) and which objects looked finished
+in the last clear view; call
 :meth:`ScriptedPolicy.reset` at the start of each subtask or episode.
 """
 
@@ -23,7 +24,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from hw_drivers.sim.tasks.stack_bowls import nested_base_height
+from hw_drivers.sim.tasks.stack_bowls import BOWLS, nested_base_height
+from hw_drivers.sim.tasks.stack_bowls import WALL as BOWL_WALL
 from pilworld.config.rig import RigConfig
 from pilworld.policies.scripted.knowledge import (
     Intent,
@@ -40,6 +42,7 @@ SIDES = (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP))
 APPROACH_Z = 0.12  # TCP height for moving over objects [m]
 NOMINAL_SPEED = 0.6  # peak Cartesian TCP speed of the best checkpoint [m/s]
 HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest on an object
+FINGERTIP_BELOW_TCP = 0.018  # the fingertips reach this far below the TCP [m]
 
 
 def _home() -> NDArray[np.float64]:
@@ -70,6 +73,7 @@ class ScriptedPolicy:
         self.seed = seed
         self.sightings = Sightings(image_width=self.camera.width)
         self._grasped: str | None = None  # the object this policy last went to grasp
+        self._done: dict[str, bool] = {}  # per object: finished, as last judged from a clear view
 
     @property
     def name(self) -> str:
@@ -81,6 +85,7 @@ class ScriptedPolicy:
             self.seed = seed
         self.sightings = Sightings(image_width=self.camera.width)
         self._grasped = None
+        self._done = {}
 
     def knowledge(self, instruction: str) -> TaskKnowledge:
         if instruction not in self._knowledge:
@@ -104,7 +109,7 @@ class ScriptedPolicy:
             held = self._grasped or self._held_object(know, holding[0], state)
             intent = None if held is None else know.intent_for(held, self.sightings, self.camera)
         else:
-            intent = know.next_intent(self.sightings, self.camera)
+            intent = self._next_intent(know, tcps)
             if intent is not None and self.sightings.last.get(intent.obj) is None:
                 # Out of sight. Under a gripper where we remember it (we are reaching for it): trust the
                 # memory. Elsewhere the memory may be stale (it was moved out of view): clear the view.
@@ -124,6 +129,38 @@ class ScriptedPolicy:
                 continue
             chunk[:, np.r_[arm, grip]] = self._retreat(side, state[arm], state[grip])
         return chunk.astype(np.float32)
+
+    def _next_intent(self, know: TaskKnowledge, tcps: NDArray[np.float64]) -> Intent | None:
+        """The first unfinished object's pick-and-place, with "done" judged only from clear views.
+
+        An arm over an object hides part of it from the head camera and skews its estimate; then the
+        object keeps the verdict of the last clear view instead of flipping to "not done" and being
+        picked up again. "Clear" means no gripper within 12 cm and no forearm passing within 8 cm
+        (the segment from a gripper to its arm's base, on the table plane).
+        """
+        for name, intent, done in know.progress(self.sightings, self.camera):
+            uv = self.sightings.uv.get(name)
+            clear = uv is None or self._clear_of_arms(uv, tcps)
+            if clear or name not in self._done:
+                self._done[name] = done
+            if not self._done[name]:
+                return intent
+        return None
+
+    def _clear_of_arms(self, uv: NDArray[np.float64], tcps: NDArray[np.float64]) -> bool:
+        pts, ok = self.camera.backproject_to_plane(uv, 0.03)
+        if not bool(ok):
+            return False
+        p = np.asarray(pts[:2], dtype=np.float64)
+        for (side, _, _), tcp in zip(SIDES, tcps, strict=True):
+            a = np.asarray(tcp[:2], dtype=np.float64)
+            b = getattr(self.rig.kinematics, side).T_rig_base[:2, 3]
+            if float(np.hypot(*(p - a))) < 0.12:
+                return False
+            t = float(np.clip(np.dot(p - a, b - a) / max(float(np.dot(b - a, b - a)), 1e-9), 0.0, 1.0))
+            if float(np.hypot(*(p - (a + t * (b - a))))) < 0.08:
+                return False
+        return True
 
     def _held_object(self, know: TaskKnowledge, side: str, state: NDArray[np.float64]) -> str | None:
         """The unfinished object whose blob lies nearest the holding gripper in the head image."""
@@ -162,7 +199,8 @@ class ScriptedPolicy:
         if float(np.linalg.norm(T[:3, 3] - np.asarray(home))) < 0.01:
             return planner.joint_path(q, grip, self.home[arm], float(self.home[g]), self.horizon)
         safe = max(float(T[2, 3]), APPROACH_Z, home[2])
-        yaw = self._home_yaw(side)
+        # The gripper is symmetric under a half turn: keep the nearer of the two home yaws.
+        yaw = nearest_equivalent_yaw(self._home_yaw(side), tcp_yaw(T), math.pi)
         wps = [
             Waypoint((float(T[0, 3]), float(T[1, 3]), safe), tcp_yaw(T), 1.0, speed=0.3),
             Waypoint((home[0], home[1], safe), yaw, 1.0, speed=NOMINAL_SPEED),
@@ -195,6 +233,11 @@ class ScriptedPolicy:
             (gx, gy, gz), yaw, off = know.rim_grasp(index, np.array([gx, gy]), base_xy)
             offset = np.asarray(off)
             release_z = nested_base_height(index) + know.grasp_height(index) + 0.01
+            if index > 0:
+                # Open with the fingertips above the lower bowl's rim: opened inside it, the outer
+                # finger would wedge against its wall and lift the whole stack on the way up.
+                below_top = nested_base_height(index - 1) + BOWLS[index - 1][3] + BOWL_WALL
+                release_z = max(release_z, below_top + FINGERTIP_BELOW_TCP + 0.008)
             if carrying:
                 # Keep the yaw we hold it with; the bowl's centre lies along the closing axis.
                 yaw = yaw_now

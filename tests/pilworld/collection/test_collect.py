@@ -58,8 +58,8 @@ def independent_run() -> list[SubtaskRecording]:
         start = robot.reset(seed=0, subtask=0, history=SPEC.history, stride=SPEC.stride)
         obs = start.observation
         recs = []
+        policy.reset(seed=0)  # one continuous episode: the policy is reset once per run
         for k in range(robot.task.num_subtasks):
-            policy.reset(seed=0 * 100 + k)
             recs.append(run_subtask(robot, policy.infer, obs, robot.task.instruction, spec=SPEC, subtask_index=k))
             obs = robot.observe()
     return recs
