@@ -92,7 +92,7 @@ def simulate_run(rig_path: str, job: RunJob, spec: ChunkSpec) -> list[PartResult
     for k in range(n):
         robot.subtask = Subtask(job.task, k, robot.task.instruction, job.seed)
         rec = run_subtask(robot, policy.infer, obs, robot.task.instruction, spec=spec, subtask_index=k)
-        assert rec.check is not None
+        assert rec.check is not None and rec.last is not None
         parts.append(
             PartResult(
                 job=job,
@@ -107,7 +107,7 @@ def simulate_run(rig_path: str, job: RunJob, spec: ChunkSpec) -> list[PartResult
                 reason=rec.check.reason,
             )
         )
-        obs = robot.observe()
+        obs = rec.last  # the next subtask continues from here; no second render
     return parts
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hw_drivers.sim.robot import SimRobot, SubtaskCheck
-from pilworld.types import ChunkSpec, Observation
+from pilworld.types import ActionChunk, ChunkSpec, Observation
 
 PolicyFn = Callable[[Observation, str], NDArray[np.floating]]
 
@@ -35,6 +35,7 @@ class SubtaskRecording:
     rounds: list[int] = field(default_factory=list)
     commands: list[NDArray[np.float32]] = field(default_factory=list)  # every control step
     check: SubtaskCheck | None = None
+    last: Observation | None = None  # the final observation (where a following subtask starts)
 
     def add_frame(self, obs: Observation, round_index: int) -> None:
         for view, image in obs.images.items():
@@ -69,14 +70,11 @@ def run_subtask(
     if record:
         rec.add_frame(obs, 0)
     for r in range(spec.rounds):
-        chunk = np.asarray(policy(obs, instruction), dtype=np.float32)
-        if chunk.ndim != 2 or chunk.shape[0] < spec.executed_steps or chunk.shape[1] != robot.spec.dof:
-            raise ValueError(
-                f"policy: expected a chunk of at least {spec.executed_steps} x {robot.spec.dof} actions, "
-                f"got {chunk.shape}"
-            )
-        for step in range(spec.executed_steps):
-            sent = robot.send_action(chunk[step])
+        chunk = ActionChunk.from_array(policy(obs, instruction), name="policy")
+        if chunk.dim != robot.spec.dof:
+            raise ValueError(f"policy: expected {robot.spec.dof} action dimensions, got {chunk.dim}")
+        for step, action in enumerate(chunk.executed(spec)):
+            sent = robot.send_action(action)
             rec.commands.append(sent)
             if record and (step + 1) % stride == 0:
                 rec.actions.append(sent)  # the stride-aligned action that led to the frame added next
@@ -84,6 +82,7 @@ def run_subtask(
                 rec.add_frame(obs, r)
         if not record:
             obs = robot.observe()
+    rec.last = obs
     if record:
         rec.actions.append(rec.commands[-1])  # the last frame has no successor: repeat the last command
     rec.check = robot.check_subtask(subtask_index)
