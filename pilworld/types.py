@@ -32,6 +32,10 @@ LEFT_GRIP = 6
 RIGHT_ARM = slice(7, 13)
 RIGHT_GRIP = 13
 ARM_SIDES = ("left", "right")
+# Per arm: (its joints, its grip) in the 14-d vector.
+ARM_LAYOUT: Mapping[str, tuple[slice, int]] = MappingProxyType(
+    {"left": (LEFT_ARM, LEFT_GRIP), "right": (RIGHT_ARM, RIGHT_GRIP)}
+)
 DEFAULT_VIEWS = ("cam_high", "cam_left_wrist", "cam_right_wrist")
 HEAD_VIEW = "cam_high"
 

@@ -27,7 +27,7 @@ from hw_drivers.sim.poses import HOME_Q14
 from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, settings_for
 from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
 from pilworld.config.rig import RigConfig
-from pilworld.types import LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, STATE_DIM, Observation, RobotSpec, Start, Subtask
+from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
 
 DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 ARM_SPEED = math.pi  # rad/s, a UR e-Series joint's maximum
@@ -44,6 +44,11 @@ class SubtaskCheck:
     released: bool
     stable: bool
     reason: str
+
+
+def _check_int(name: str, value: object, *, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
 
 
 class SimRobot:
@@ -120,33 +125,27 @@ class SimRobot:
     def _index_model(self) -> None:
         m = self._model
         self._arm_qadr = {
-            side: np.array([m.joint(f"{side}_joint_{i}").qposadr[0] for i in range(1, 7)]) for side in ("left", "right")
+            side: np.array([m.joint(f"{side}_joint_{i}").qposadr[0] for i in range(1, 7)]) for side in ARM_SIDES
         }
         self._arm_dadr = {
-            side: np.array([m.joint(f"{side}_joint_{i}").dofadr[0] for i in range(1, 7)]) for side in ("left", "right")
+            side: np.array([m.joint(f"{side}_joint_{i}").dofadr[0] for i in range(1, 7)]) for side in ARM_SIDES
         }
         self._finger_qadr = {
-            side: np.array([m.joint(f"{side}_finger_{f}").qposadr[0] for f in "ab"]) for side in ("left", "right")
+            side: np.array([m.joint(f"{side}_finger_{f}").qposadr[0] for f in "ab"]) for side in ARM_SIDES
         }
-        self._act = {
-            side: np.array([m.actuator(f"{side}_joint_{i}").id for i in range(1, 7)]) for side in ("left", "right")
-        }
-        self._finger_act = {
-            side: np.array([m.actuator(f"{side}_finger_{f}").id for f in "ab"]) for side in ("left", "right")
-        }
-        self._half_open = {side: getattr(self.rig.arms, side).gripper.max_opening_m / 2 for side in ("left", "right")}
+        self._act = {side: np.array([m.actuator(f"{side}_joint_{i}").id for i in range(1, 7)]) for side in ARM_SIDES}
+        self._finger_act = {side: np.array([m.actuator(f"{side}_finger_{f}").id for f in "ab"]) for side in ARM_SIDES}
+        self._half_open = {side: getattr(self.rig.arms, side).gripper.max_opening_m / 2 for side in ARM_SIDES}
         self._obj_body = {o.name: m.body(o.name).id for o in self.task.objects()}
         self._obj_qadr = {o.name: m.joint(f"{o.name}_free").qposadr[0] for o in self.task.objects()}
-        self._finger_body = {
-            side: (m.body(f"{side}_finger_a").id, m.body(f"{side}_finger_b").id) for side in ("left", "right")
-        }
+        self._finger_body = {side: (m.body(f"{side}_finger_a").id, m.body(f"{side}_finger_b").id) for side in ARM_SIDES}
 
     def state(self) -> NDArray[np.float32]:
         """The measured 14-d state: joint angles and the normalised finger gap of each gripper."""
         self._require()
         q = self._data.qpos
         out = np.empty(STATE_DIM, dtype=np.float64)
-        for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
+        for side, (arm, grip) in ARM_LAYOUT.items():
             out[arm] = q[self._arm_qadr[side]]
             # Clipped like a real gripper's position report: contact can push a finger a hair past its stop.
             gap = q[self._finger_qadr[side]].sum() / (2 * self._half_open[side])
@@ -189,7 +188,7 @@ class SimRobot:
 
     def _apply_ctrl(self, target: NDArray[np.float64], data: Any = None) -> None:
         d = self._data if data is None else data
-        for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
+        for side, (arm, grip) in ARM_LAYOUT.items():
             d.ctrl[self._act[side]] = target[arm]
             half = self._half_open[side]
             d.ctrl[self._finger_act[side]] = target[grip] * (half + FINGER_SQUEEZE) - FINGER_SQUEEZE
@@ -225,9 +224,8 @@ class SimRobot:
                 self.xml = build_mjcf(self.rig, new.objects(), new.fixtures())
                 self.connect()
         self.task.check_index(subtask)
-        for name, value in (("history", history), ("stride", stride)):
-            if isinstance(value, bool) or not isinstance(value, int) or value < (0 if name == "history" else 1):
-                raise ValueError(f"{name}: expected an integer >= {0 if name == 'history' else 1}, got {value!r}")
+        _check_int("history", history, minimum=0)
+        _check_int("stride", stride, minimum=1)
         if isinstance(seed, bool) or not isinstance(seed, int):
             raise ValueError(f"seed: expected an integer, got {seed!r}")
         m, d = self._model, self._data
@@ -258,7 +256,7 @@ class SimRobot:
 
     def _set_arm_qpos(self, q14: NDArray[np.float64]) -> None:
         d = self._data
-        for side, arm, grip in (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP)):
+        for side, (arm, grip) in ARM_LAYOUT.items():
             d.qpos[self._arm_qadr[side]] = q14[arm]
             d.qpos[self._finger_qadr[side]] = q14[grip] * self._half_open[side]
             d.qvel[self._arm_dadr[side]] = 0.0
@@ -323,7 +321,7 @@ class SimRobot:
                 touched.add(b2)
             elif b2 == body:
                 touched.add(b1)
-        for side in ("left", "right"):
+        for side in ARM_SIDES:
             if {self._finger_body[side][0], self._finger_body[side][1]} <= touched:
                 return side
         return None

@@ -28,6 +28,7 @@ from hw_drivers.sim.objects import FixtureSpec, GeomSpec, ObjectSpec
 from pilworld.config.rig import ArmConfig, RigConfig
 from pilworld.geometry import invert_transform
 from pilworld.kinematics.ur_dh import dh_params
+from pilworld.types import ARM_SIDES
 
 ARM_RGBA = (0.62, 0.63, 0.66, 1.0)
 JOINT_RGBA = (0.28, 0.30, 0.33, 1.0)
@@ -253,7 +254,7 @@ def build_mjcf(
     """The MJCF of the rig with a task's objects and fixtures; ``markers`` are (name, xyz, radius) spheres."""
     s = settings_for(rig)
     w, h = rig.image_size.width, rig.image_size.height
-    arms = [_arm_xml(side, getattr(rig.arms, side), rig, s) for side in ("left", "right")]
+    arms = [_arm_xml(side, getattr(rig.arms, side), rig, s) for side in ARM_SIDES]
     tx = TABLE_CENTRE_X
     marker_xml = [
         f'<site name="{name}" type="sphere" pos="{_f(xyz)}" size="{r:.6g}" rgba="1 0 1 1"/>' for name, xyz, r in markers

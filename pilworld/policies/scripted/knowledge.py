@@ -79,11 +79,6 @@ class Sightings:
             self.uv[c.name] = centre
             self.count[c.name] = blob.n_pixels
 
-    def visible_fraction(self, name: str) -> float:
-        blob = self.last.get(name)
-        best = self.best.get(name, 0)
-        return 0.0 if blob is None or best == 0 else blob.n_pixels / best
-
 
 def _bp(camera: CameraModel, uv: XY, z: float) -> XY:
     pts, ok = camera.backproject_to_plane(uv, z)
@@ -103,13 +98,6 @@ class TaskKnowledge(ABC):
     @abstractmethod
     def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
         """Per object in task order: (name, its pick-and-place if it can be planned, whether it looks done)."""
-
-    def next_intent(self, seen: Sightings, camera: CameraModel) -> Intent | None:
-        """The first unfinished object's pick-and-place, or None when the task looks finished."""
-        for _, intent, done in self.progress(seen, camera):
-            if not done:
-                return intent
-        return None
 
     def intent_for(self, obj: str, seen: Sightings, camera: CameraModel) -> Intent | None:
         """The pick-and-place of ``obj`` (e.g. the object in the hand), done or not."""

@@ -36,9 +36,8 @@ from pilworld.policies.scripted.knowledge import (
 )
 from pilworld.policies.scripted.motion import ArmPlanner, Waypoint, nearest_equivalent_yaw, tcp_yaw
 from pilworld.policies.scripted.skill import Checkpoint, checkpoint, errors_for
-from pilworld.types import HEAD_VIEW, LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, STATE_DIM, Observation
+from pilworld.types import ARM_LAYOUT, HEAD_VIEW, STATE_DIM, Observation
 
-SIDES = (("left", LEFT_ARM, LEFT_GRIP), ("right", RIGHT_ARM, RIGHT_GRIP))
 APPROACH_Z = 0.12  # TCP height for moving over objects [m]
 NOMINAL_SPEED = 0.6  # peak Cartesian TCP speed of the best checkpoint [m/s]
 HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest on an object
@@ -66,9 +65,15 @@ class ScriptedPolicy:
         lo, hi = spec.lower_array.astype(np.float64), spec.upper_array.astype(np.float64)
         kin = rig.kinematics
         self.planners = {
-            side: ArmPlanner(getattr(kin, side), rig.control_rate_hz, lo[arm], hi[arm]) for side, arm, _ in SIDES
+            side: ArmPlanner(getattr(kin, side), rig.control_rate_hz, lo[arm], hi[arm])
+            for side, (arm, _) in ARM_LAYOUT.items()
         }
         self.home = _home()
+        # Each arm's home TCP (position, yaw), where it retreats to after a placement.
+        self._home_tcp: dict[str, tuple[tuple[float, float, float], float]] = {}
+        for side, (arm, _) in ARM_LAYOUT.items():
+            T = self.planners[side].tcp(self.home[arm])
+            self._home_tcp[side] = ((float(T[0, 3]), float(T[1, 3]), float(T[2, 3])), tcp_yaw(T))
         self._knowledge: dict[str, TaskKnowledge] = {}
         self.seed = seed
         self.sightings = Sightings(image_width=self.camera.width)
@@ -101,10 +106,10 @@ class ScriptedPolicy:
         if state.shape != (STATE_DIM,):
             raise ValueError(f"observation.state: expected {STATE_DIM} values, got shape {state.shape}")
         know = self.knowledge(instruction)
-        tcps = np.stack([self.planners[side].tcp(state[arm])[:3, 3] for side, arm, _ in SIDES])
+        tcps = np.stack([self.planners[side].tcp(state[arm])[:3, 3] for side, (arm, _) in ARM_LAYOUT.items()])
         grippers_uv, _ = self.camera.project(tcps)
         self.sightings.update(np.asarray(observation.images[HEAD_VIEW]), know.classes, grippers_uv)
-        holding = [side for side, _, grip in SIDES if HOLD_MIN < state[grip] < HOLD_MAX]
+        holding = [side for side, (_, grip) in ARM_LAYOUT.items() if HOLD_MIN < state[grip] < HOLD_MAX]
         if holding:
             held = self._grasped or self._held_object(know, holding[0], state)
             intent = None if held is None else know.intent_for(held, self.sightings, self.camera)
@@ -121,10 +126,10 @@ class ScriptedPolicy:
         active: str | None = None
         if intent is not None:
             active = holding[0] if holding else self._arm_for(intent)
-            arm, grip = (LEFT_ARM, LEFT_GRIP) if active == "left" else (RIGHT_ARM, RIGHT_GRIP)
+            arm, grip = ARM_LAYOUT[active]
             plan = self._pick_and_place(active, state[arm], state[grip], intent, know, carrying=bool(holding))
             chunk[:, arm], chunk[:, grip] = plan[:, :6], plan[:, 6]
-        for side, arm, grip in SIDES:
+        for side, (arm, grip) in ARM_LAYOUT.items():
             if side == active:
                 continue
             chunk[:, np.r_[arm, grip]] = self._retreat(side, state[arm], state[grip])
@@ -152,7 +157,7 @@ class ScriptedPolicy:
         if not bool(ok):
             return False
         p = np.asarray(pts[:2], dtype=np.float64)
-        for (side, _, _), tcp in zip(SIDES, tcps, strict=True):
+        for side, tcp in zip(ARM_LAYOUT, tcps, strict=True):
             a = np.asarray(tcp[:2], dtype=np.float64)
             b = getattr(self.rig.kinematics, side).T_rig_base[:2, 3]
             if float(np.hypot(*(p - a))) < 0.12:
@@ -164,7 +169,7 @@ class ScriptedPolicy:
 
     def _held_object(self, know: TaskKnowledge, side: str, state: NDArray[np.float64]) -> str | None:
         """The unfinished object whose blob lies nearest the holding gripper in the head image."""
-        arm = LEFT_ARM if side == "left" else RIGHT_ARM
+        arm, _ = ARM_LAYOUT[side]
         tcp = self.planners[side].tcp(state[arm])[:3, 3]
         uv, _ = self.camera.project(tcp[None])
         best, best_d = None, math.inf
@@ -179,20 +184,17 @@ class ScriptedPolicy:
         return best
 
     def _home_xyz(self, side: str) -> tuple[float, float, float]:
-        arm = LEFT_ARM if side == "left" else RIGHT_ARM
-        p = self.planners[side].tcp(self.home[arm])[:3, 3]
-        return (float(p[0]), float(p[1]), float(p[2]))
+        return self._home_tcp[side][0]
 
     def _home_yaw(self, side: str) -> float:
-        arm = LEFT_ARM if side == "left" else RIGHT_ARM
-        return tcp_yaw(self.planners[side].tcp(self.home[arm]))
+        return self._home_tcp[side][1]
 
     def _arm_for(self, intent: Intent) -> str:
         return "left" if intent.grasp_xyz[1] >= 0.0 else "right"
 
     def _retreat(self, side: str, q: NDArray[np.float64], grip: float) -> NDArray[np.float64]:
         """Back to home in Cartesian space, first straight up: a joint-space move could dip into a stack."""
-        arm, g = (LEFT_ARM, LEFT_GRIP) if side == "left" else (RIGHT_ARM, RIGHT_GRIP)
+        arm, g = ARM_LAYOUT[side]
         planner = self.planners[side]
         T = planner.tcp(q)
         home = self._home_xyz(side)
