@@ -14,9 +14,7 @@ a kill is simulated again (it is deterministic) and only its missing parts are a
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
-import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +22,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from pilworld.collection.workers import process_map, worker_count, worker_robot
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.reader import EpisodeStore
@@ -61,26 +60,12 @@ class PartResult:
     reason: str
 
 
-_ROBOTS: dict[tuple[str, str], Any] = {}
-
-
-def _robot(rig_path: str, task: str) -> Any:
-    from hw_drivers.sim.robot import SimRobot
-
-    key = (rig_path, task)
-    if key not in _ROBOTS:
-        robot = SimRobot(rig_path, task)
-        robot.connect()
-        _ROBOTS[key] = robot
-    return _ROBOTS[key]
-
-
 def simulate_run(rig_path: str, job: RunJob, spec: ChunkSpec) -> list[PartResult]:
     """Simulate one run (all subtasks back to back) and return its parts."""
     from pilworld.collection.rollout import run_subtask
     from pilworld.policies.scripted import ScriptedPolicy
 
-    robot = _robot(rig_path, job.task)
+    robot = worker_robot(rig_path, job.task)
     policy = ScriptedPolicy(robot.rig, job.checkpoint, horizon=spec.horizon)
     start = robot.reset(seed=job.seed, subtask=0, history=spec.history, stride=spec.stride)
     obs = start.observation
@@ -149,17 +134,6 @@ def plan_jobs(tasks: Sequence[str], checkpoints: Sequence[str], episodes: int, s
     return [RunJob(t, c, seed0 + i) for t in tasks for c in checkpoints for i in range(episodes)]
 
 
-def _results(jobs: list[RunJob], rig_path: str, spec: ChunkSpec, workers: int) -> Iterator[list[PartResult]]:
-    args = [(rig_path, j, spec) for j in jobs]
-    if workers <= 1:
-        for a in args:
-            yield _worker(a)
-        return
-    ctx = mp.get_context("spawn")  # a forked child would inherit the parent's GL state
-    with ctx.Pool(workers) as pool:
-        yield from pool.imap(_worker, args)
-
-
 def collect(
     out: str | Path,
     *,
@@ -181,12 +155,12 @@ def collect(
     done = stored_parts(root)
     jobs = plan_jobs(tasks, checkpoints, episodes, seed0)
     todo = [j for j in jobs if j.run_id not in done or len(done[j.run_id]) < _num_subtasks(j.task)]
-    workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+    workers = worker_count(workers, len(todo))
     t0 = time.monotonic()
     written = 0
     with EpisodeWriter(root, dataset_spec(rig_path, video_mode, spec)) as writer:
         bar = tqdm(total=len(todo), desc="runs", unit="run", disable=not progress)
-        for parts in _results(todo, rig_path, spec, workers):
+        for parts in process_map(_worker, [(rig_path, j, spec) for j in todo], workers):
             have = done.get(parts[0].job.run_id, set())
             outcomes = []
             for p in parts:

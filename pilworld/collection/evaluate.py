@@ -7,23 +7,20 @@ paired runner starts them, and every checkpoint sees the same starts.
 
 from __future__ import annotations
 
-import multiprocessing as mp
-import os
 from collections.abc import Sequence
-from typing import Any
 
 from tqdm import tqdm
 
+from pilworld.collection.workers import process_map, worker_count, worker_robot
 from pilworld.types import ChunkSpec
 
 
 def _evaluate_one(args: tuple[str, str, str, int, int, ChunkSpec]) -> tuple[str, str, int, bool]:
     rig_path, task, checkpoint, seed, subtask, spec = args
-    from pilworld.collection.collect import _robot
     from pilworld.collection.rollout import run_subtask
     from pilworld.policies.scripted import ScriptedPolicy
 
-    robot = _robot(rig_path, task)
+    robot = worker_robot(rig_path, task)
     policy = ScriptedPolicy(robot.rig, checkpoint, seed=seed * 100 + subtask, horizon=spec.horizon)
     start = robot.reset(seed=seed, subtask=subtask, history=spec.history, stride=spec.stride)
     rec = run_subtask(
@@ -56,22 +53,9 @@ def success_rates(
         for ckpt in checkpoints:
             jobs += [(rig_path, task, ckpt, seed0 + i, i % n, spec) for i in range(subtasks)]
     wins: dict[str, dict[str, int]] = {t: {c: 0 for c in checkpoints} for t in tasks}
-    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
-    bar = tqdm(total=len(jobs), desc="subtasks", unit="subtask", disable=not progress)
-    results: Any
-    if workers == 1:
-        results = map(_evaluate_one, jobs)
-        pool = None
-    else:
-        pool = mp.get_context("spawn").Pool(workers)
-        results = pool.imap_unordered(_evaluate_one, jobs, chunksize=4)
-    try:
-        for task, ckpt, _, ok in results:
+    workers = worker_count(workers, len(jobs))
+    with tqdm(total=len(jobs), desc="subtasks", unit="subtask", disable=not progress) as bar:
+        for task, ckpt, _, ok in process_map(_evaluate_one, jobs, workers, ordered=False, chunksize=4):
             wins[task][ckpt] += int(ok)
             bar.update(1)
-    finally:
-        bar.close()
-        if pool is not None:
-            pool.close()
-            pool.join()
     return {t: {c: wins[t][c] / subtasks for c in checkpoints} for t in tasks}
