@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from hw_drivers.robot import DeviceNotConnectedError
 from hw_drivers.sim.gl import make_renderer, mujoco
 from hw_drivers.sim.poses import HOME_Q14
-from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, settings_for
+from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, settings_for
 from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
@@ -91,12 +91,7 @@ class SimRobot:
     def connect(self) -> None:
         if self._model is not None:
             return
-        try:
-            model = mujoco.MjModel.from_xml_string(self.xml)
-        except ValueError as exc:
-            raise ValueError(
-                f"sim rig {self.rig.name!r} with task {self.task.name!r}: scene does not compile: {exc}"
-            ) from exc
+        model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}")
         self._model = model
         self._data = mujoco.MjData(model)
         w, h = self._spec.image_size

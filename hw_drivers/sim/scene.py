@@ -20,10 +20,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from hw_drivers.sim.gl import mujoco  # imported through gl: the GL backend is chosen before MuJoCo loads
 from hw_drivers.sim.objects import FixtureSpec, GeomSpec, ObjectSpec
 from pilworld.config.rig import ArmConfig, RigConfig
 from pilworld.geometry import invert_transform
@@ -77,8 +79,6 @@ def _f(values: Iterable[float]) -> str:
 
 def _mat_to_quat(R: NDArray[np.float64]) -> tuple[float, float, float, float]:
     """Rotation matrix → unit quaternion (w, x, y, z), MuJoCo's order."""
-    import mujoco
-
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=np.float64).reshape(9))
     return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
@@ -298,11 +298,9 @@ def build_mjcf(
 """
 
 
-def compile_scene(xml: str) -> object:
-    """Compile MJCF text into an ``MjModel`` (errors name the scene)."""
-    import mujoco
-
+def compile_scene(xml: str, what: str = "simulated rig scene") -> Any:
+    """Compile MJCF text into an ``MjModel``; a compile error names ``what`` was being built."""
     try:
         return mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:
-        raise ValueError(f"simulated rig scene does not compile: {exc}") from exc
+        raise ValueError(f"{what} does not compile: {exc}") from exc
