@@ -111,7 +111,8 @@ class ScriptedPolicy:
         self.sightings.update(np.asarray(observation.images[HEAD_VIEW]), know.classes, grippers_uv)
         holding = [side for side, (_, grip) in ARM_LAYOUT.items() if HOLD_MIN < state[grip] < HOLD_MAX]
         if holding:
-            held = self._grasped or self._held_object(know, holding[0], state)
+            side_index = list(ARM_LAYOUT).index(holding[0])
+            held = self._grasped or self._held_object(know, grippers_uv[side_index])
             intent = None if held is None else know.intent_for(held, self.sightings, self.camera)
         else:
             intent = self._next_intent(know, tcps)
@@ -167,18 +168,15 @@ class ScriptedPolicy:
                 return False
         return True
 
-    def _held_object(self, know: TaskKnowledge, side: str, state: NDArray[np.float64]) -> str | None:
-        """The unfinished object whose blob lies nearest the holding gripper in the head image."""
-        arm, _ = ARM_LAYOUT[side]
-        tcp = self.planners[side].tcp(state[arm])[:3, 3]
-        uv, _ = self.camera.project(tcp[None])
+    def _held_object(self, know: TaskKnowledge, gripper_uv: NDArray[np.float64]) -> str | None:
+        """The unfinished object whose blob lies nearest the holding gripper (at ``gripper_uv``) in the image."""
         best, best_d = None, math.inf
         done = {name for name, _, ok in know.progress(self.sightings, self.camera) if ok}
         for c in know.classes:
             blob = self.sightings.last.get(c.name)
             if blob is None or c.name in done:
                 continue
-            d = float(np.hypot(*(np.asarray(blob.centroid_uv) - uv[0])))
+            d = float(np.hypot(*(np.asarray(blob.centroid_uv) - gripper_uv)))
             if d < best_d:
                 best, best_d = c.name, d
         return best
