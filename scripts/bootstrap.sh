@@ -68,7 +68,7 @@ if ! "$VENV/bin/python" -c 'import torch' >/dev/null 2>&1; then
   log "installing $TORCH_SPEC (CPU build) ..."
   pip_install "$TORCH_SPEC"
 fi
-log "installing pilworld and its dependencies (editable, with dev tools) ..."
-pip_install -e "$ROOT[dev]"
+log "installing pilworld and its dependencies (editable, with dev tools and the Wan2.1 backend) ..."
+pip_install -e "$ROOT[dev,wan]"
 echo "$want" >"$stamp"
 log "environment ready: $VENV"

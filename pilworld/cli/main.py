@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, control_video, data, sim
+from pilworld.cli import bench, control_video, data, sim, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     data.register(sub)
     bench.register(sub)
     sim.register(sub)
+    train.register(sub)
     return parser
 
 

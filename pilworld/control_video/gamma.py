@@ -222,7 +222,26 @@ class ControlVideo:
         arr = self._as_chunks(chunks, "actions")
         if arr.ndim == 2:
             raise ValueError(f"actions: render_batch expects (B, H, {STATE_DIM}), got {arr.shape}")
-        geo = self.geometry(arr[:, self.spec.stride_indices()], previous_states)
+        return self.render_stride_aligned(arr[:, self.spec.stride_indices()], previous_states)
+
+    def render_stride_aligned(
+        self,
+        stride_actions: NDArray[np.floating],
+        previous_states: NDArray[np.floating] | None = None,
+    ) -> NDArray[np.uint8]:
+        """Γ from stride-aligned actions already picked out (B, K, 14) → uint8 (B, K, H, W, 3).
+
+        Training clips store only the stride-aligned actions, so this is how Γ is drawn for them; it
+        draws exactly what :meth:`render_batch` draws for full chunks with those rows.
+        """
+        arr = np.asarray(stride_actions, dtype=np.float64)
+        if arr.ndim != 3 or arr.shape[1:] != (self.spec.frames, STATE_DIM):
+            raise ValueError(
+                f"stride_actions: expected shape (B, {self.spec.frames}, {STATE_DIM}), got {arr.shape}"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise ValueError("stride_actions: contains non-finite values")
+        geo = self.geometry(arr, previous_states)
         out = np.zeros((arr.shape[0], self.spec.frames, self.height, self.width, 3), dtype=np.uint8)
         layer = np.empty(out.shape[1:], dtype=np.uint8)
         for b in range(arr.shape[0]):

@@ -1,0 +1,118 @@
+"""``pilworld train pretrain|finetune``: the world model's two training stages (see
+:mod:`pilworld.world_model.training.trainer`). ``--nproc N`` re-launches the same command under
+``torchrun`` with N processes (DDP; gloo on CPU, nccl on GPUs)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+from pilworld.cli.bench import DEFAULT_RIG
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", type=Path, required=True, help="training dataset folder (LeRobot v3.0 layout)")
+    p.add_argument("--out", type=Path, required=True, help="run folder (created, or resumed when it exists)")
+    p.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config for the control video (default: sim)")
+    p.add_argument("--steps", type=int, default=4000, help="Ψ_θ (or LoRA) optimiser steps (default 4000)")
+    p.add_argument("--batch", type=int, default=16, help="clips per step, over all processes (default 16)")
+    p.add_argument("--lr", type=float, default=None, help="learning rate (default 3e-4; LoRA 1e-3)")
+    p.add_argument("--window", type=int, default=9, help="clip window W in stride-sampled frames (default 9)")
+    p.add_argument(
+        "--success-fraction",
+        type=float,
+        default=None,
+        help="share of clips from successes (default: as stored; 1 = success-only)",
+    )
+    p.add_argument("--checkpoint-every", type=int, default=250, help="steps between checkpoints (default 250)")
+    p.add_argument("--validate-every", type=int, default=500, help="steps between validations (default 500)")
+    p.add_argument("--val-clips", type=int, default=24, help="validation clips (default 24)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--nproc", type=int, default=1, help="processes; >1 re-launches under torchrun (default 1)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser("train", help="train the world model (stage 1 or stage 2)")
+    stages = p.add_subparsers(dest="stage", metavar="STAGE")
+    stages.required = True
+
+    pre = stages.add_parser("pretrain", help="stage 1: the frame VAE, then Ψ_θ, on all tasks")
+    _common(pre)
+    pre.add_argument("--preset", default="small", help="model preset: tiny, small (default), base")
+    pre.add_argument("--tasks", default="", help="comma-separated tasks (default: all in the dataset)")
+    pre.add_argument("--vae-steps", type=int, default=2000, help="frame-VAE steps before Ψ_θ (default 2000)")
+    pre.add_argument("--vae-batch", type=int, default=32, help="frames per VAE step (default 32)")
+    pre.add_argument("--no-history", action="store_true", help="ablation: no latent history memory")
+    pre.add_argument("--action-tokens", action="store_true", help="ablation: add per-frame raw-action tokens")
+    pre.add_argument(
+        "--no-control-video", action="store_true", help="ablation: no control video (needs --action-tokens)"
+    )
+    pre.set_defaults(handler=_run)
+
+    fin = stages.add_parser("finetune", help="stage 2: LoRA on one target task, success and failure clips")
+    _common(fin)
+    fin.add_argument("--init", type=Path, required=True, help="stage-1 model folder (RUN/model)")
+    fin.add_argument("--task", required=True, help="the target task")
+    fin.add_argument("--lora-rank", type=int, default=16, help="LoRA rank (default 16)")
+    fin.set_defaults(handler=_run)
+
+
+def _relaunch(args: argparse.Namespace) -> int:
+    if args.nproc < 1:
+        raise ValueError(f"--nproc: expected >= 1, got {args.nproc}")
+    argv = [a for a in sys.argv[1:]]
+    i = argv.index("--nproc")
+    del argv[i : i + 2]
+    cmd = [
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--standalone",
+        f"--nproc_per_node={args.nproc}",
+        "-m",
+        "pilworld",
+        *argv,
+    ]
+    env = dict(os.environ, OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1"))
+    return subprocess.call(cmd, env=env)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pilworld.world_model.training.trainer import TrainConfig, Trainer
+
+    if args.nproc != 1 and "WORLD_SIZE" not in os.environ:
+        return _relaunch(args)
+    finetune = args.stage == "finetune"
+    cfg = TrainConfig(
+        stage=args.stage,
+        data=str(args.data),
+        out=str(args.out),
+        rig=str(args.rig),
+        preset="" if finetune else args.preset,
+        init=str(args.init) if finetune else None,
+        tasks=(args.task,) if finetune else tuple(t for t in args.tasks.split(",") if t),
+        success_fraction=args.success_fraction,
+        window=args.window,
+        history=not getattr(args, "no_history", False),
+        control_video=not getattr(args, "no_control_video", False),
+        action_tokens=getattr(args, "action_tokens", False),
+        vae_steps=0 if finetune else args.vae_steps,
+        vae_batch=getattr(args, "vae_batch", 32),
+        steps=args.steps,
+        batch=args.batch,
+        lr=args.lr if args.lr is not None else (1e-3 if finetune else 3e-4),
+        lora_rank=getattr(args, "lora_rank", 16),
+        checkpoint_every=args.checkpoint_every,
+        validate_every=args.validate_every,
+        val_clips=args.val_clips,
+        seed=args.seed,
+    )
+    final = Trainer(cfg, progress=not args.quiet).run()
+    if int(os.environ.get("RANK", "0")) == 0:
+        print(f"model: {final}")
+    return 0

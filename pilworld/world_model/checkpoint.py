@@ -1,0 +1,95 @@
+"""World-model checkpoints: safetensors weights beside a JSON config (never a pickle).
+
+A model folder holds ``config.json`` (a :class:`WorldModelConfig` plus ``format``) and
+``model.safetensors``. A stage-2 (fine-tuned) folder may also hold LoRA adapters, one per target
+task, under ``adapters/<name>/`` (``adapter_config.json`` and ``adapter.safetensors``, peft's names);
+:func:`load_world_model` applies one and merges it into the weights for inference speed.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors.torch import load_file, save_file
+
+from pilworld.data.atomic import atomic_write
+from pilworld.world_model.config import WorldModelConfig
+from pilworld.world_model.model import PilWorldModel
+
+FORMAT = "pilworld-world-model/1"
+CONFIG_FILE = "config.json"
+WEIGHTS_FILE = "model.safetensors"
+ADAPTERS_DIR = "adapters"
+
+
+def write_json(path: Path, data: dict[str, Any]) -> None:
+    text = json.dumps(data, indent=2, sort_keys=True) + "\n"
+    atomic_write(path, lambda tmp: tmp.write_text(text))
+
+
+def save_tensors(path: Path, tensors: dict[str, torch.Tensor], metadata: dict[str, str] | None = None) -> None:
+    clean = {k: v.detach().contiguous().cpu() for k, v in tensors.items()}
+    atomic_write(path, lambda tmp: save_file(clean, str(tmp), metadata=metadata))
+
+
+def save_model(model: PilWorldModel, folder: str | Path, *, dtype: torch.dtype = torch.float32) -> Path:
+    """Write ``model`` (weights cast to ``dtype``; float16 halves a shipped file) with its config."""
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    state = {k: v.to(dtype) if v.is_floating_point() else v for k, v in model.state_dict().items()}
+    save_tensors(out / WEIGHTS_FILE, state, {"format": FORMAT})
+    write_json(out / CONFIG_FILE, {"format": FORMAT, "config": model.config.to_dict()})
+    return out
+
+
+def read_config(folder: str | Path) -> WorldModelConfig:
+    path = Path(folder) / CONFIG_FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no world-model config (expected {CONFIG_FILE} beside {WEIGHTS_FILE})")
+    data = json.loads(path.read_text())
+    if data.get("format") != FORMAT:
+        raise ValueError(f"{path}: format {data.get('format')!r} is not {FORMAT!r}")
+    return WorldModelConfig.from_dict(data["config"])
+
+
+def load_model(folder: str | Path, *, device: str | torch.device = "cpu") -> PilWorldModel:
+    """The base model of a folder (no adapter), in float32, in eval mode."""
+    folder = Path(folder)
+    config = read_config(folder)
+    weights = folder / WEIGHTS_FILE
+    if not weights.is_file():
+        raise FileNotFoundError(f"{weights}: missing world-model weights")
+    model = PilWorldModel(config)
+    state = {k: v.float() if v.is_floating_point() else v for k, v in load_file(str(weights)).items()}
+    missing, unexpected = model.load_state_dict(state, strict=False)
+    if missing or unexpected:
+        raise ValueError(
+            f"{weights}: weights do not fit the config (missing {missing[:5]}, unexpected {unexpected[:5]})"
+        )
+    return model.to(device).eval()
+
+
+def adapter_names(folder: str | Path) -> list[str]:
+    root = Path(folder) / ADAPTERS_DIR
+    return sorted(p.name for p in root.iterdir() if (p / "adapter.safetensors").is_file()) if root.is_dir() else []
+
+
+def load_world_model(
+    path: str | Path, *, adapter: str | None = None, device: str | torch.device = "cpu"
+) -> PilWorldModel:
+    """Load a model folder for inference; ``adapter`` names a LoRA adapter under ``adapters/`` to merge in."""
+    from pilworld.world_model.lora import apply_adapter
+
+    folder = Path(path)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: not a world-model folder (expected {CONFIG_FILE} and {WEIGHTS_FILE})")
+    model = load_model(folder, device=device)
+    if adapter is not None:
+        names = adapter_names(folder)
+        if adapter not in names:
+            raise ValueError(f"adapter: {adapter!r} not in {folder / ADAPTERS_DIR} (available: {names})")
+        apply_adapter(model, folder / ADAPTERS_DIR / adapter, merge=True)
+    return model.eval()

@@ -1,0 +1,203 @@
+"""The native PiL-World model: frame VAE + Ψ_θ + flow matching, behind the :class:`WorldModel` interface.
+
+Training objective (paper appendix "Latent Training Objective", the velocity form of flow matching):
+only the future latents are noised, ``Z_τ = (1 − τ)·Z^f + τ·ε`` with ``τ ~ logit-normal`` (SD3), and
+Ψ_θ regresses the velocity ``ε − Z^f`` given the clean conditions (Z⁰, Z^h, C_t, g). Sampling
+integrates from pure noise at τ = 1 to τ = 0 with ``steps`` Euler steps, seeded.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+from torch import nn
+
+from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo, predict_one
+from pilworld.world_model.config import WorldModelConfig
+from pilworld.world_model.denoiser import Denoiser
+from pilworld.world_model.vae import FrameVAE, to_uint8, to_unit
+
+
+class PilWorldModel(nn.Module):
+    """E_φ / D_φ (frozen after stage 0) and Ψ_θ; implements :class:`~pilworld.world_model.base.WorldModel`."""
+
+    latent_mean: torch.Tensor  # [1, C, 1, 1] buffers (from the config)
+    latent_std: torch.Tensor
+
+    def __init__(self, config: WorldModelConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.vae = FrameVAE(config.vae)
+        self.denoiser = Denoiser(config)
+        C = config.vae.latent_channels
+        mean = torch.tensor(config.latent_mean or [0.0] * C, dtype=torch.float32)
+        std = torch.tensor(config.latent_std or [1.0] * C, dtype=torch.float32)
+        self.register_buffer("latent_mean", mean.view(1, C, 1, 1), persistent=False)
+        self.register_buffer("latent_std", std.view(1, C, 1, 1), persistent=False)
+        self.mask_history = False  # the no-history ablation at inference (see without_history)
+
+    @property
+    def info(self) -> WorldModelInfo:
+        return self.config.info
+
+    def set_latent_stats(self, mean: Sequence[float], std: Sequence[float]) -> None:
+        self.config = self.config.replace(
+            latent_mean=tuple(float(m) for m in mean), latent_std=tuple(float(s) for s in std)
+        )
+        C = self.config.vae.latent_channels
+        self.latent_mean.copy_(torch.tensor(self.config.latent_mean).view(1, C, 1, 1))
+        self.latent_std.copy_(torch.tensor(self.config.latent_std).view(1, C, 1, 1))
+
+    # ------------------------------------------------------------------ latents
+
+    def encode(self, images: torch.Tensor) -> torch.Tensor:
+        """uint8 [..., 3, H, W] → normalised latent means [..., C, H/8, W/8]."""
+        lead = images.shape[:-3]
+        mean, _ = self.vae.encode(to_unit(images.reshape(-1, *images.shape[-3:])))
+        z = (mean - self.latent_mean) / self.latent_std
+        return z.reshape(*lead, *z.shape[1:])
+
+    def decode(self, latents: torch.Tensor) -> torch.Tensor:
+        """Normalised latents [..., C, h, w] → uint8 images [..., 3, 8h, 8w]."""
+        lead = latents.shape[:-3]
+        z = latents.reshape(-1, *latents.shape[-3:]) * self.latent_std + self.latent_mean
+        img = to_uint8(self.vae.decode(z).clamp(-1.0, 1.0))
+        return img.reshape(*lead, *img.shape[1:])
+
+    def _history(
+        self, history: torch.Tensor | None, valid: torch.Tensor | None, batch: int, device: torch.device
+    ) -> tuple[torch.Tensor | None, torch.Tensor | None]:
+        """Zero the latents of invalid history frames and return the validity flags as floats."""
+        if not self.config.conditioning.history:
+            return None, None
+        assert history is not None and valid is not None
+        flags = valid.to(device=device, dtype=torch.float32)
+        if self.mask_history:
+            flags = torch.zeros_like(flags)
+        history = history * flags[:, None, :, None, None, None]
+        return history, flags
+
+    # ------------------------------------------------------------------ training
+
+    def flow_loss(
+        self,
+        future: torch.Tensor,  # [B, V, K, C, h, w] normalised latents
+        current: torch.Tensor,  # [B, V, C, h, w]
+        history: torch.Tensor,  # [B, V, H_h, C, h, w]
+        history_valid: torch.Tensor,  # bool [B, H_h]
+        control: torch.Tensor,  # uint8 [B, K, 3, H, W]
+        actions: torch.Tensor,  # [B, K, A]
+        instruction: Sequence[str],
+        generator: torch.Generator,
+    ) -> tuple[torch.Tensor, dict[str, float]]:
+        """Flow-matching loss on the future latents (only Z^f is noised and supervised)."""
+        cond = self.config.conditioning
+        B = future.shape[0]
+
+        def randn(*shape: int) -> torch.Tensor:
+            return torch.randn(*shape, generator=generator).to(future.device)
+
+        def rand(*shape: int) -> torch.Tensor:
+            return torch.rand(*shape, generator=generator).to(future.device)
+
+        tau = torch.sigmoid(randn(B))  # logit-normal noise levels
+        eps = randn(*future.shape)
+        t = tau.view(B, 1, 1, 1, 1, 1)
+        noisy = (1 - t) * future + t * eps
+        # Condition noise: the current frame and history are generated in closed loop, so train on noisy ones.
+        sigma = rand(B).view(B, 1, 1, 1, 1) * cond.condition_noise
+        current = current + sigma * randn(*current.shape)
+        history = history + sigma[..., None] * randn(*history.shape)
+        valid = history_valid.clone()
+        if cond.history_dropout > 0:
+            valid &= (rand(B) >= cond.history_dropout)[:, None]
+        h, flags = self._history(history, valid, B, future.device)
+        ctrl = self.denoiser.control_tokens(to_unit(control)) if cond.control_video else None
+        pred = self.denoiser(noisy, tau, current, h, flags, ctrl, actions, instruction)
+        target = eps - future
+        loss = ((pred - target) ** 2).mean()
+        with torch.no_grad():  # the one-step estimate of Z^f, a cheap progress signal
+            x0 = noisy - t * pred
+            x0_err = ((x0 - future) ** 2).mean()
+        return loss, {"loss": float(loss), "x0_mse": float(x0_err)}
+
+    # ------------------------------------------------------------------ sampling
+
+    @torch.no_grad()
+    def sample_latents(
+        self,
+        current: torch.Tensor,
+        history: torch.Tensor | None,
+        history_valid: torch.Tensor | None,
+        control: torch.Tensor,
+        actions: torch.Tensor,
+        instruction: Sequence[str],
+        *,
+        steps: int,
+        seed: int,
+    ) -> torch.Tensor:
+        """Euler integration of the learned velocity from τ = 1 (noise) to τ = 0 → [B, V, K, C, h, w]."""
+        cfg = self.config
+        B, V = current.shape[:2]
+        shape = (B, V, cfg.future, cfg.vae.latent_channels, cfg.height // 8, cfg.width // 8)
+        gen = torch.Generator().manual_seed(int(seed))
+        z = torch.randn(shape, generator=gen).to(current.device)
+        h, flags = self._history(history, history_valid, B, current.device)
+        ctrl = self.denoiser.control_tokens(to_unit(control)) if cfg.conditioning.control_video else None
+        taus = torch.linspace(1.0, 0.0, steps + 1)
+        for i in range(steps):
+            tau = torch.full((B,), float(taus[i]), device=current.device)
+            v = self.denoiser(z, tau, current, h, flags, ctrl, actions, instruction)
+            z = z + float(taus[i + 1] - taus[i]) * v
+        return z
+
+    @torch.no_grad()
+    def predict_batch(self, batch: WorldModelBatch, *, steps: int | None = None, seed: int = 0) -> torch.Tensor:
+        batch.check(self.info)
+        steps = self.config.steps if steps is None else steps
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise ValueError(f"steps: expected an integer >= 1, got {steps!r}")
+        device = next(self.parameters()).device
+        b = batch.to(device)
+        current = self.encode(b.current)
+        history = self.encode(b.history) if self.config.conditioning.history else None
+        z = self.sample_latents(
+            current, history, b.history_valid, b.control, b.actions, b.instruction, steps=steps, seed=seed
+        )
+        return self.decode(z).cpu()
+
+    def predict(
+        self, request: PredictRequest, *, steps: int | None = None, seed: int = 0
+    ) -> dict[str, NDArray[np.uint8]]:
+        return predict_one(self, request, steps=steps, seed=seed)
+
+    def without_history(self) -> HistoryAblated:
+        """The same weights with the latent history memory hidden (the history ablation at inference)."""
+        return HistoryAblated(self)
+
+
+class HistoryAblated:
+    """A view of a :class:`PilWorldModel` that never sees history (all frames flagged missing, zeroed)."""
+
+    def __init__(self, model: PilWorldModel) -> None:
+        self.model = model
+
+    @property
+    def info(self) -> WorldModelInfo:
+        return self.model.info
+
+    def predict_batch(self, batch: WorldModelBatch, *, steps: int | None = None, seed: int = 0) -> torch.Tensor:
+        previous = self.model.mask_history
+        self.model.mask_history = True
+        try:
+            return self.model.predict_batch(batch, steps=steps, seed=seed)
+        finally:
+            self.model.mask_history = previous
+
+    def predict(
+        self, request: PredictRequest, *, steps: int | None = None, seed: int = 0
+    ) -> dict[str, NDArray[np.uint8]]:
+        return predict_one(self, request, steps=steps, seed=seed)
