@@ -65,9 +65,9 @@ def register(sub: Any) -> None:
 def _relaunch(args: argparse.Namespace) -> int:
     if args.nproc < 1:
         raise ValueError(f"--nproc: expected >= 1, got {args.nproc}")
-    argv = [a for a in sys.argv[1:]]
-    i = argv.index("--nproc")
-    del argv[i : i + 2]
+    # The command goes through unchanged: under torchrun WORLD_SIZE is set, so the ranks do not relaunch
+    # again. (Cutting out "--nproc N" by position failed on the "--nproc=N" spelling.)
+    argv = list(getattr(args, "argv", None) or sys.argv[1:])  # main(argv) records the real command line
     cmd = [
         sys.executable,
         "-m",

@@ -236,9 +236,7 @@ class ControlVideo:
         """
         arr = np.asarray(stride_actions, dtype=np.float64)
         if arr.ndim != 3 or arr.shape[1:] != (self.spec.frames, STATE_DIM):
-            raise ValueError(
-                f"stride_actions: expected shape (B, {self.spec.frames}, {STATE_DIM}), got {arr.shape}"
-            )
+            raise ValueError(f"stride_actions: expected shape (B, {self.spec.frames}, {STATE_DIM}), got {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise ValueError("stride_actions: contains non-finite values")
         geo = self.geometry(arr, previous_states)

@@ -112,8 +112,10 @@ class PredictRequest:
                 f"actions: expected stride-aligned actions of shape ({K}, {info.action_dim}), got {act.shape}"
             )
         if not np.all(np.isfinite(act)):
-            bad = np.argwhere(~np.isfinite(act))[0]
-            raise ValueError(f"actions: non-finite value {act[tuple(bad)]!r} at index {tuple(int(i) for i in bad)}")
+            bad = np.argwhere(~np.isfinite(act))[0]  # float(): numpy 2 would print np.float32(nan)
+            raise ValueError(
+                f"actions: non-finite value {float(act[tuple(bad)])} at index {tuple(int(i) for i in bad)}"
+            )
         if not isinstance(instruction, str):
             raise ValueError(f"instruction: expected a string, got {type(instruction).__name__}")
         return cls(cur, hist, valid, ctrl, act, instruction)

@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 import torch
 from safetensors.torch import load_file, save_file
 
-from pilworld.data.atomic import atomic_write
+from pilworld.data.atomic import atomic_write, write_json
 from pilworld.world_model.config import WorldModelConfig
 from pilworld.world_model.model import PilWorldModel
 
@@ -23,11 +22,6 @@ FORMAT = "pilworld-world-model/1"
 CONFIG_FILE = "config.json"
 WEIGHTS_FILE = "model.safetensors"
 ADAPTERS_DIR = "adapters"
-
-
-def write_json(path: Path, data: dict[str, Any]) -> None:
-    text = json.dumps(data, indent=2, sort_keys=True) + "\n"
-    atomic_write(path, lambda tmp: tmp.write_text(text))
 
 
 def save_tensors(path: Path, tensors: dict[str, torch.Tensor], metadata: dict[str, str] | None = None) -> None:

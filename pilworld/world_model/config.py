@@ -98,6 +98,7 @@ class WorldModelConfig:
     history: int = 5  # H_h
     action_dim: int = STATE_DIM
     steps: int = 4  # default Euler steps at inference
+    residual_decoding: bool = True  # frames = x⁰ + D(Z^f) − D(Z⁰) (see PilWorldModel.render_future)
     vae: VAEConfig = field(default_factory=VAEConfig)
     denoiser: DenoiserConfig = field(default_factory=DenoiserConfig)
     conditioning: ConditioningConfig = field(default_factory=ConditioningConfig)

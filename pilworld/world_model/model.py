@@ -60,12 +60,28 @@ class PilWorldModel(nn.Module):
         z = (mean - self.latent_mean) / self.latent_std
         return z.reshape(*lead, *z.shape[1:])
 
-    def decode(self, latents: torch.Tensor) -> torch.Tensor:
-        """Normalised latents [..., C, h, w] → uint8 images [..., 3, 8h, 8w]."""
+    def decode_unit(self, latents: torch.Tensor) -> torch.Tensor:
+        """Normalised latents [..., C, h, w] → float images [..., 3, 8h, 8w] (about [−1, 1])."""
         lead = latents.shape[:-3]
         z = latents.reshape(-1, *latents.shape[-3:]) * self.latent_std + self.latent_mean
-        img = to_uint8(self.vae.decode(z).clamp(-1.0, 1.0))
+        img = self.vae.decode(z)
         return img.reshape(*lead, *img.shape[1:])
+
+    def decode(self, latents: torch.Tensor) -> torch.Tensor:
+        """Normalised latents [..., C, h, w] → uint8 images [..., 3, 8h, 8w]."""
+        return to_uint8(self.decode_unit(latents).clamp(-1.0, 1.0))
+
+    def render_future(self, future: torch.Tensor, current_latents: torch.Tensor, current: torch.Tensor) -> torch.Tensor:
+        """Future latents [B, V, K, C, h, w] → uint8 frames [B, V, K, 3, H, W].
+
+        With ``residual_decoding`` the frames are ``x⁰ + D(Z^f) − D(Z⁰)``: the VAE's reconstruction error
+        of the current frame x⁰ is systematic, so subtracting it keeps every unchanged pixel (the table,
+        a still arm's wrist view) at its true value instead of its slightly blurred reconstruction.
+        """
+        out = self.decode_unit(future)
+        if self.config.residual_decoding:
+            out = out - self.decode_unit(current_latents)[:, :, None] + to_unit(current)[:, :, None]
+        return to_uint8(out.clamp(-1.0, 1.0))
 
     def _history(
         self, history: torch.Tensor | None, valid: torch.Tensor | None, batch: int, device: torch.device
@@ -122,7 +138,7 @@ class PilWorldModel(nn.Module):
         with torch.no_grad():  # the one-step estimate of Z^f, a cheap progress signal
             x0 = noisy - t * pred
             x0_err = ((x0 - future) ** 2).mean()
-        return loss, {"loss": float(loss), "x0_mse": float(x0_err)}
+        return loss, {"loss": float(loss.detach()), "x0_mse": float(x0_err)}
 
     # ------------------------------------------------------------------ sampling
 
@@ -167,7 +183,7 @@ class PilWorldModel(nn.Module):
         z = self.sample_latents(
             current, history, b.history_valid, b.control, b.actions, b.instruction, steps=steps, seed=seed
         )
-        return self.decode(z).cpu()
+        return self.render_future(z, current, b.current).cpu()
 
     def predict(
         self, request: PredictRequest, *, steps: int | None = None, seed: int = 0

@@ -80,17 +80,20 @@ class TrainData:
         self.gamma = control_renderer(rig, model.info)
         episodes = self.dataset.store.episodes
         names = self._task_names(episodes)
+        # A task may be named by its simulated task name or by its instruction. (Episode rows hold the
+        # instruction in LeRobot's ``tasks`` list, not in a ``task`` key: reading ``task`` matched nothing.)
+        instructions = [self._instruction(ep) for ep in episodes]
         wanted = set(selection.tasks)
         if wanted:
             known = set(names)
-            unknown = sorted(wanted - known - {str(e.get("task", "")) for e in episodes})
+            unknown = sorted(wanted - known - set(instructions))
             if unknown:
                 raise ValueError(f"tasks: {unknown} not in {root} (has {sorted(known)})")
         keep_train: list[int] = []
         keep_val: list[int] = []
         for i, clip in enumerate(self.dataset.clips):
             e = clip.episode_index
-            if wanted and names[e] not in wanted:
+            if wanted and names[e] not in wanted and instructions[e] not in wanted:
                 continue
             (keep_val if is_validation_episode(e, selection.val_every) else keep_train).append(i)
         if not keep_train:
@@ -114,8 +117,14 @@ class TrainData:
                 import json
 
                 name = json.loads(extra).get("sim_task")
-            out.append(str(name or ep.get("task", "")))
+            out.append(str(name or TrainData._instruction(ep)))
         return out
+
+    @staticmethod
+    def _instruction(episode: dict[str, object]) -> str:
+        """The instruction of an episodes-table row (its LeRobot ``tasks`` list; "" when absent)."""
+        tasks = episode.get("tasks")
+        return str(tasks[0]) if isinstance(tasks, list) and tasks else ""
 
     # ------------------------------------------------------------------ orders
 

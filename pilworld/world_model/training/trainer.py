@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import time
 from collections.abc import Callable
@@ -23,16 +24,21 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from safetensors.torch import save_file
 from torch import nn
 from tqdm import tqdm
 
 from pilworld.config.rig import RigConfig
-from pilworld.world_model.checkpoint import load_model, save_model, write_json
+from pilworld.data.atomic import write_json
+from pilworld.world_model.checkpoint import load_model, save_model
 from pilworld.world_model.config import ConditioningConfig, preset
 from pilworld.world_model.model import PilWorldModel
 from pilworld.world_model.training.data import DataSelection, TrainData, step_generator
 from pilworld.world_model.training.distributed import Dist, init_distributed, shutdown
 from pilworld.world_model.training.state import EMA, latest_checkpoint, load_checkpoint, save_checkpoint
+
+# Debug hook for the DDP tests (see Trainer._dump_rank_weights).
+DUMP_RANK_WEIGHTS_ENV = "PILWORLD_DUMP_RANK_WEIGHTS"
 
 
 @dataclass(frozen=True)
@@ -115,13 +121,21 @@ class Trainer:
         self.progress = progress
         self.stop_after = stop_after  # stop (as if killed) after this many steps of the current phase
         self.dist: Dist = init_distributed()
+        for name in ("batch", "vae_batch"):
+            if getattr(config, name) < self.dist.world:
+                raise ValueError(
+                    f"{name}: {getattr(config, name)} is smaller than the {self.dist.world} processes; "
+                    "every process needs at least one sample per step"
+                )
         self.rig = RigConfig.load(config.rig)
 
     # ------------------------------------------------------------------ set-up
 
     def _check_run_folder(self) -> None:
         path = self.out / "train_config.json"
-        want = self.cfg.to_json()
+        # Compare in JSON form: the stored file has lists where the config has tuples (e.g. ``tasks``),
+        # and () != [] would reject every resume.
+        want = json.loads(json.dumps(self.cfg.to_json()))
         if path.is_file():
             have = json.loads(path.read_text())
             # Schedule-only settings may change on resume (e.g. more steps); anything else changes the model.
@@ -163,7 +177,12 @@ class Trainer:
         cond = replace(
             base.conditioning, history=c.history, control_video=c.control_video, action_tokens=c.action_tokens
         )
-        return PilWorldModel(base.replace(conditioning=ConditioningConfig(**asdict(cond))))
+        # The initial weights come from ``seed`` (they used the global torch RNG: ``--seed`` did not reach
+        # them, and a second run in the same process, or a rerun after a kill before the first checkpoint,
+        # started from other weights than the first run). A forked RNG leaves the caller's RNG untouched.
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(c.seed)
+            return PilWorldModel(base.replace(conditioning=ConditioningConfig(**asdict(cond))))
 
     # ------------------------------------------------------------------ the generic loop
 
@@ -223,14 +242,27 @@ class Trainer:
 
     def run(self) -> Path:
         try:
-            self._check_run_folder()
+            # Build the model first: a bad preset, ablation mix or --init then fails before the run folder
+            # records the settings (which would make the corrected command a "run with different settings").
             model = self._model()
+            self._check_run_folder()
             model.to(self.dist.device())
-            if self.cfg.stage == "pretrain":
-                return self._pretrain(model)
-            return self._finetune(model)
+            final = self._pretrain(model) if self.cfg.stage == "pretrain" else self._finetune(model)
+            self._dump_rank_weights(model)
+            return final
         finally:
             shutdown(self.dist)
+
+    def _dump_rank_weights(self, model: PilWorldModel) -> None:
+        """Debug hook: with ``$PILWORLD_DUMP_RANK_WEIGHTS=DIR`` set, every rank writes its final model state
+        (the raw weights, not the EMA) to ``DIR/rank{r}.safetensors``, so a test can check that DDP kept
+        the ranks bit-identical. Off (and free) when the variable is unset."""
+        folder = os.environ.get(DUMP_RANK_WEIGHTS_ENV)
+        if not folder:
+            return
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
+        save_file(state, str(Path(folder) / f"rank{self.dist.rank}.safetensors"))
 
     def _data(self, model: PilWorldModel) -> TrainData:
         c = self.cfg
