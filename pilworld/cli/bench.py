@@ -53,6 +53,13 @@ def register(sub: Any) -> None:
     sm.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     sm.set_defaults(handler=_sim)
 
+    wp = benches.add_parser("world-model-presets", help="parameter counts and chunk latency of every native preset")
+    wp.add_argument("--presets", default="", help="comma-separated presets (default: all)")
+    wp.add_argument("--repeats", type=int, default=10, help="timed calls per preset; the median is reported")
+    wp.add_argument("--steps", type=int, default=None, help="Euler steps (default: each preset's own)")
+    wp.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    wp.set_defaults(handler=_world_model_presets)
+
     wm = benches.add_parser(
         "world-model",
         help="world model: single-step PSNR/SSIM on held-out sim episodes vs the frozen baseline, chunk latency",
@@ -63,6 +70,7 @@ def register(sub: Any) -> None:
         default=None,
         help="world-model checkpoint (default: pilworld.world_model.DEFAULT_CHECKPOINT when defined)",
     )
+    wm.add_argument("--adapter", default=None, help="LoRA adapter of the checkpoint to apply (a task name)")
     wm.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     wm.add_argument("--tasks", default="all", help="comma-separated tasks of the held-out runs (default all)")
     wm.add_argument("--episodes", type=int, default=2, help="held-out runs per task and checkpoint (default 2)")
@@ -155,6 +163,22 @@ def _sim(args: argparse.Namespace) -> int:
     return 0
 
 
+def _world_model_presets(args: argparse.Namespace) -> int:
+    from pilworld.bench.world_model_presets import run_presets_bench
+
+    names = [n for n in args.presets.split(",") if n] or None
+    result = run_presets_bench(names, repeats=args.repeats, steps=args.steps, progress=not args.json)
+    for name, r in result["presets"].items():
+        w, h = r["image_size"]
+        print(
+            f"{name:>6}: {r['params'] / 1e6:6.2f} M params ({r['float32_mb']} MB float32), {w}x{h}, "
+            f"{r['steps']} steps: {r['chunk_latency_ms']:.1f} ms per chunk, realtime x{r['realtime_factor']}"
+        )
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
 def _world_model(args: argparse.Namespace) -> int:
     # Imported here: the checkpoint loader pulls in torch and the model code, which other commands do not need.
     import pilworld.world_model as world_model
@@ -168,7 +192,7 @@ def _world_model(args: argparse.Namespace) -> int:
     if not Path(checkpoint).exists():
         raise FileNotFoundError(f"--checkpoint: {checkpoint} not found")
     tasks = _names(args.tasks, list(TASK_NAMES), "--tasks")
-    model = load_world_model(Path(checkpoint))
+    model = load_world_model(Path(checkpoint), adapter=args.adapter)
     no_history = None
     if not args.no_ablation and hasattr(model, "without_history"):
         no_history = model.without_history()
@@ -193,7 +217,7 @@ def _world_model(args: argparse.Namespace) -> int:
         progress=not args.json,
         lpips_weights=args.lpips_weights,
     )
-    result = {"checkpoint": str(checkpoint), **result}
+    result = {"checkpoint": str(checkpoint), "adapter": args.adapter, **result}
     w, h = result["image_size"]
     print(
         f"world-model ({result['model']}, {w}x{h}, K={result['K']}): {result['clips']} held-out clips, "

@@ -99,6 +99,7 @@ class WorldModelConfig:
     action_dim: int = STATE_DIM
     steps: int = 4  # default Euler steps at inference
     residual_decoding: bool = True  # frames = x⁰ + D(Z^f) − D(Z⁰) (see PilWorldModel.render_future)
+    parameterization: str = "residual_x0"  # or "velocity" (see PilWorldModel.velocity)
     vae: VAEConfig = field(default_factory=VAEConfig)
     denoiser: DenoiserConfig = field(default_factory=DenoiserConfig)
     conditioning: ConditioningConfig = field(default_factory=ConditioningConfig)
@@ -115,6 +116,8 @@ class WorldModelConfig:
                 f"(8× VAE downsampling × token patch {self.denoiser.patch})"
             )
         _positive("steps", self.steps)
+        if self.parameterization not in ("residual_x0", "velocity"):
+            raise ValueError(f"parameterization: expected 'residual_x0' or 'velocity', got {self.parameterization!r}")
         for name in ("latent_mean", "latent_std"):
             v = getattr(self, name)
             if v and len(v) != self.vae.latent_channels:

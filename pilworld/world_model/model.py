@@ -132,13 +132,30 @@ class PilWorldModel(nn.Module):
             valid &= (rand(B) >= cond.history_dropout)[:, None]
         h, flags = self._history(history, valid, B, future.device)
         ctrl = self.denoiser.control_tokens(to_unit(control)) if cond.control_video else None
-        pred = self.denoiser(noisy, tau, current, h, flags, ctrl, actions, instruction)
-        target = eps - future
-        loss = ((pred - target) ** 2).mean()
-        with torch.no_grad():  # the one-step estimate of Z^f, a cheap progress signal
-            x0 = noisy - t * pred
-            x0_err = ((x0 - future) ** 2).mean()
+        out = self.denoiser(noisy, tau, current, h, flags, ctrl, actions, instruction)
+        if self.config.parameterization == "velocity":
+            loss = ((out - (eps - future)) ** 2).mean()
+            with torch.no_grad():  # the one-step estimate of Z^f, a cheap progress signal
+                x0_err = ((noisy - t * out - future) ** 2).mean()
+        else:  # residual_x0: Ψ_θ predicts Z^f − Z⁰; the velocity (Z_τ − Ẑ^f)/τ follows (see velocity())
+            loss = ((current[:, :, None] + out - future) ** 2).mean()
+            x0_err = loss.detach()
         return loss, {"loss": float(loss.detach()), "x0_mse": float(x0_err)}
+
+    def velocity(self, out: torch.Tensor, z: torch.Tensor, tau: float, current: torch.Tensor) -> torch.Tensor:
+        """The flow's velocity at (Z_τ, τ) from Ψ_θ's output under the configured parameterization.
+
+        ``residual_x0`` (default): Ψ_θ predicts the change of the clean future latents from the current
+        frame's, Ẑ^f = Z⁰ + Ψ_θ, and v = (Z_τ − Ẑ^f)/τ — the velocity of the straight path through Ẑ^f,
+        so Euler sampling integrates the same flow as a velocity-parameterised model. Its loss
+        ‖Ẑ^f − Z^f‖² is the velocity loss weighted by τ² (the documented equivalent the issue allows).
+        Why: an untrained model already predicts "nothing moves" (the frozen baseline) instead of
+        noise, and the last Euler step returns Ẑ^f exactly; on 2 CPU cores this trained to a better
+        validation PSNR within a few hundred steps than the velocity form did in 500.
+        """
+        if self.config.parameterization == "velocity":
+            return out
+        return (z - (current[:, :, None] + out)) / tau
 
     # ------------------------------------------------------------------ sampling
 
@@ -166,8 +183,8 @@ class PilWorldModel(nn.Module):
         taus = torch.linspace(1.0, 0.0, steps + 1)
         for i in range(steps):
             tau = torch.full((B,), float(taus[i]), device=current.device)
-            v = self.denoiser(z, tau, current, h, flags, ctrl, actions, instruction)
-            z = z + float(taus[i + 1] - taus[i]) * v
+            out = self.denoiser(z, tau, current, h, flags, ctrl, actions, instruction)
+            z = z + float(taus[i + 1] - taus[i]) * self.velocity(out, z, float(taus[i]), current)
         return z
 
     @torch.no_grad()
