@@ -100,6 +100,7 @@ class WorldModelConfig:
     steps: int = 4  # default Euler steps at inference
     residual_decoding: bool = True  # frames = x⁰ + D(Z^f) − D(Z⁰) (see PilWorldModel.render_future)
     parameterization: str = "residual_x0"  # or "velocity" (see PilWorldModel.velocity)
+    pure_noise_fraction: float = 0.2  # training samples at τ = 1 (where sampling starts); the rest τ ~ U(0, 1)
     vae: VAEConfig = field(default_factory=VAEConfig)
     denoiser: DenoiserConfig = field(default_factory=DenoiserConfig)
     conditioning: ConditioningConfig = field(default_factory=ConditioningConfig)
@@ -116,6 +117,8 @@ class WorldModelConfig:
                 f"(8× VAE downsampling × token patch {self.denoiser.patch})"
             )
         _positive("steps", self.steps)
+        if not 0.0 <= self.pure_noise_fraction <= 1.0:
+            raise ValueError(f"pure_noise_fraction: expected a value in [0, 1], got {self.pure_noise_fraction!r}")
         if self.parameterization not in ("residual_x0", "velocity"):
             raise ValueError(f"parameterization: expected 'residual_x0' or 'velocity', got {self.parameterization!r}")
         for name in ("latent_mean", "latent_std"):
