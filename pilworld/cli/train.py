@@ -61,6 +61,28 @@ def register(sub: Any) -> None:
     fin.add_argument("--lora-rank", type=int, default=16, help="LoRA rank (default 16)")
     fin.set_defaults(handler=_run)
 
+    exp = stages.add_parser("export", help="a shippable model folder: weights in float16 plus stage-2 adapters")
+    exp.add_argument("source", type=Path, help="stage-1 model folder (RUN/model)")
+    exp.add_argument("--adapters", type=Path, nargs="*", default=[], help="stage-2 model folders whose adapters to add")
+    exp.add_argument("--dtype", default="float16", choices=["float16", "bfloat16", "float32"])
+    exp.add_argument("--out", type=Path, required=True, help="destination folder")
+    exp.set_defaults(handler=_export)
+
+
+def _export(args: argparse.Namespace) -> int:
+    from pilworld.world_model.checkpoint import adapter_names, export_model
+
+    dest = export_model(args.source, args.out, adapters=list(args.adapters), dtype=torch_dtype(args.dtype))
+    size = sum(f.stat().st_size for f in dest.rglob("*") if f.is_file())
+    print(f"exported {dest} ({size / 1e6:.1f} MB; adapters: {adapter_names(dest) or 'none'})")
+    return 0
+
+
+def torch_dtype(name: str) -> Any:
+    import torch
+
+    return {"float16": torch.float16, "bfloat16": torch.bfloat16, "float32": torch.float32}[name]
+
 
 def _relaunch(args: argparse.Namespace) -> int:
     if args.nproc < 1:

@@ -87,3 +87,24 @@ def load_world_model(
             raise ValueError(f"adapter: {adapter!r} not in {folder / ADAPTERS_DIR} (available: {names})")
         apply_adapter(model, folder / ADAPTERS_DIR / adapter, merge=True)
     return model.eval()
+
+
+def export_model(
+    source: str | Path, out: str | Path, *, adapters: list[Path] | None = None, dtype: torch.dtype = torch.float16
+) -> Path:
+    """Write a shippable copy of a model folder: weights cast to ``dtype`` and the LoRA adapters of ``adapters``
+    (stage-2 model folders fine-tuned from ``source``, or adapter folders) gathered under ``adapters/``."""
+    import shutil
+
+    model = load_model(source)
+    dest = save_model(model, out, dtype=dtype)
+    for src in adapters or []:
+        src = Path(src)
+        found = (
+            [src] if (src / "adapter.safetensors").is_file() else [src / ADAPTERS_DIR / n for n in adapter_names(src)]
+        )
+        if not found:
+            raise FileNotFoundError(f"{src}: no LoRA adapter (expected adapter.safetensors or {ADAPTERS_DIR}/<task>/)")
+        for folder in found:
+            shutil.copytree(folder, dest / ADAPTERS_DIR / folder.name, dirs_exist_ok=True)
+    return dest

@@ -427,3 +427,29 @@ def test_word_buckets_are_stable() -> None:
         zlib.crc32(b"stack blocks") % 1000,
     ]
     assert word_buckets("", 1000) == [0] and word_buckets("!!", 7) == [0]
+
+
+def test_export_casts_to_float16_and_gathers_adapters(tmp_path: Path) -> None:
+    from pilworld.cli.main import main
+    from pilworld.world_model.checkpoint import adapter_names
+
+    base = make_model(seed=3)
+    save_model(base, tmp_path / "s1")
+    stage2 = make_model(seed=3)
+    add_lora(stage2, 2)
+    with torch.no_grad():
+        for name, p in stage2.named_parameters():
+            if "lora_B" in name:
+                p.normal_(0, 0.05)
+    save_adapter(stage2, tmp_path / "s2" / "adapters" / "taskA", 2)
+    out = tmp_path / "shipped"
+    assert main(["train", "export", str(tmp_path / "s1"), "--adapters", str(tmp_path / "s2"), "--out", str(out)]) == 0
+    weights = load_file(str(out / "model.safetensors"))
+    assert all(v.dtype == torch.float16 for v in weights.values() if v.is_floating_point())
+    assert adapter_names(out) == ["taskA"]
+    merged = load_world_model(out, adapter="taskA")
+    plain = load_world_model(out)
+    batch = make_batch(plain, seed=1)
+    assert not torch.equal(merged.predict_batch(batch), plain.predict_batch(batch))
+    with pytest.raises(FileNotFoundError, match="no LoRA adapter"):
+        main(["--debug", "train", "export", str(tmp_path / "s1"), "--adapters", str(tmp_path), "--out", str(out)])
