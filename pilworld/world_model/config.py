@@ -98,7 +98,7 @@ class WorldModelConfig:
     history: int = 5  # H_h
     action_dim: int = STATE_DIM
     steps: int = 4  # default Euler steps at inference
-    residual_decoding: bool = True  # frames = x⁰ + D(Z^f) − D(Z⁰) (see PilWorldModel.render_future)
+    residual_gate: float = 0.1  # gated residual decoding width (see PilWorldModel.render_future); 0 = off
     parameterization: str = "residual_x0"  # or "velocity" (see PilWorldModel.velocity)
     pure_noise_fraction: float = 0.2  # training samples at τ = 1 (where sampling starts); the rest τ ~ U(0, 1)
     vae: VAEConfig = field(default_factory=VAEConfig)
@@ -117,6 +117,8 @@ class WorldModelConfig:
                 f"(8× VAE downsampling × token patch {self.denoiser.patch})"
             )
         _positive("steps", self.steps)
+        if self.residual_gate < 0:
+            raise ValueError(f"residual_gate: expected >= 0, got {self.residual_gate!r}")
         if not 0.0 <= self.pure_noise_fraction <= 1.0:
             raise ValueError(f"pure_noise_fraction: expected a value in [0, 1], got {self.pure_noise_fraction!r}")
         if self.parameterization not in ("residual_x0", "velocity"):
@@ -140,6 +142,10 @@ class WorldModelConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> WorldModelConfig:
+        data = dict(data)
+        if "residual_decoding" in data:  # configs written before the gate: on = the default gate width
+            on = bool(data.pop("residual_decoding"))
+            data.setdefault("residual_gate", cls.residual_gate if on else 0.0)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:

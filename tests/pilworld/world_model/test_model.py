@@ -453,3 +453,20 @@ def test_export_casts_to_float16_and_gathers_adapters(tmp_path: Path) -> None:
     assert not torch.equal(merged.predict_batch(batch), plain.predict_batch(batch))
     with pytest.raises(FileNotFoundError, match="no LoRA adapter"):
         main(["--debug", "train", "export", str(tmp_path / "s1"), "--adapters", str(tmp_path), "--out", str(out)])
+
+
+def test_legacy_residual_decoding_key_maps_to_the_gate() -> None:
+    data = preset("tiny").to_dict()
+    del data["residual_gate"]
+    assert WorldModelConfig.from_dict({**data, "residual_decoding": False}).residual_gate == 0.0
+    assert WorldModelConfig.from_dict({**data, "residual_decoding": True}).residual_gate == preset("tiny").residual_gate
+
+
+def test_gated_residual_decoding_keeps_unchanged_pixels(model: PilWorldModel) -> None:
+    """Future latents equal to the current ones decode to the current frame exactly (the gate is fully open)."""
+    batch = make_batch(model)
+    with torch.no_grad():
+        z0 = model.encode(batch.current)
+        same = z0[:, :, None].expand(-1, -1, model.config.future, -1, -1, -1).contiguous()
+        frames = model.render_future(same, z0, batch.current)
+    assert torch.equal(frames, batch.current[:, :, None].expand_as(frames))
