@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, control_video, data, sim, train
+from pilworld.cli import bench, calibrate, control_video, data, sim, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,6 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    calibrate.register(sub)
     control_video.register(sub)
     data.register(sub)
     bench.register(sub)
