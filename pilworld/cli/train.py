@@ -68,6 +68,19 @@ def register(sub: Any) -> None:
     exp.add_argument("--out", type=Path, required=True, help="destination folder")
     exp.set_defaults(handler=_export)
 
+    plot = stages.add_parser("plot", help="the training curve of a run folder as a PNG")
+    plot.add_argument("run", type=Path, help="run folder (holds log.jsonl)")
+    plot.add_argument("--out", type=Path, required=True, help="PNG file to write")
+    plot.add_argument("--title", default=None)
+    plot.set_defaults(handler=_plot)
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from pilworld.world_model.training.curves import plot_training_curve
+
+    print(f"wrote {plot_training_curve(args.run, args.out, args.title)}")
+    return 0
+
 
 def _export(args: argparse.Namespace) -> int:
     from pilworld.world_model.checkpoint import adapter_names, export_model

@@ -396,8 +396,13 @@ class Swapped:
 
 
 def validation_scores(model: PilWorldModel, batch: Any) -> dict[str, Any]:
-    """PSNR/SSIM per view of the model's predictions on validation clips (default sampling steps)."""
-    from pilworld.world_model.metrics import psnr, ssim
+    """Per view: pooled PSNR (of the mean squared error over all validation frames), mean SSIM, and the
+    frozen baseline's pooled PSNR, for the model's predictions at its default sampling steps.
+
+    Pooled, not the mean of per-frame PSNRs: a still camera renders bit-identical frames that the frozen
+    baseline copies exactly, and each would score the PSNR cap (see pilworld.world_model.metrics).
+    """
+    from pilworld.world_model.metrics import mse, psnr_from_mse, ssim
 
     was_training = model.training
     model.eval()
@@ -407,6 +412,10 @@ def validation_scores(model: PilWorldModel, batch: Any) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for i, v in enumerate(model.config.views):
         p, t = pred[:, i], batch.future[:, i]
-        out[v] = {"psnr": float(psnr(p, t).mean()), "ssim": float(ssim(p, t).mean())}
-        out[v]["psnr_frozen"] = float(psnr(batch.current[:, i, None].expand_as(t), t).mean())
+        frozen = batch.current[:, i, None].expand_as(t)
+        out[v] = {
+            "psnr": float(psnr_from_mse(mse(p, t).mean())),
+            "ssim": float(ssim(p, t).mean()),
+            "psnr_frozen": float(psnr_from_mse(mse(frozen, t).mean())),
+        }
     return out

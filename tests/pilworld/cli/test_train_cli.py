@@ -96,3 +96,23 @@ def test_nproc_relaunches_under_torchrun(spelling: list[str], tmp_path: Path, mo
     assert cmd[:5] == [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2"]
     assert cmd[5:7] == ["-m", "pilworld"] and cmd[7:] == argv
     assert env["OMP_NUM_THREADS"] == os.environ.get("OMP_NUM_THREADS", "1")
+
+
+def test_train_plot_writes_the_curve(tmp_path: Path) -> None:
+    from pilworld.cli.main import main
+
+    run = tmp_path / "run"
+    run.mkdir()
+    lines: list[dict[str, object]] = [
+        {"phase": "vae", "step": i, "loss": 1.0 / (i + 1), "psnr": 10.0 + i} for i in range(30)
+    ]
+    val = {"cam_high": {"psnr": 25.0, "ssim": 0.9, "psnr_frozen": 22.0}}
+    lines += [
+        {"phase": "denoiser", "step": i, "loss": 1.0 / (i + 1), **({"val": val} if i % 10 == 9 else {})}
+        for i in range(60)
+    ]
+    (run / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    out = tmp_path / "curve.png"
+    assert main(["train", "plot", str(run), "--out", str(out)]) == 0
+    assert out.stat().st_size > 10_000 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["train", "plot", str(tmp_path / "missing"), "--out", str(out)]) == 2
