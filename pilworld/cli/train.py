@@ -65,6 +65,7 @@ def register(sub: Any) -> None:
     exp.add_argument("source", type=Path, help="stage-1 model folder (RUN/model)")
     exp.add_argument("--adapters", type=Path, nargs="*", default=[], help="stage-2 model folders whose adapters to add")
     exp.add_argument("--dtype", default="float16", choices=["float16", "bfloat16", "float32"])
+    exp.add_argument("--steps", type=int, default=None, help="default sampling steps of the exported model")
     exp.add_argument("--out", type=Path, required=True, help="destination folder")
     exp.set_defaults(handler=_export)
 
@@ -85,7 +86,9 @@ def _plot(args: argparse.Namespace) -> int:
 def _export(args: argparse.Namespace) -> int:
     from pilworld.world_model.checkpoint import adapter_names, export_model
 
-    dest = export_model(args.source, args.out, adapters=list(args.adapters), dtype=torch_dtype(args.dtype))
+    dest = export_model(
+        args.source, args.out, adapters=list(args.adapters), dtype=torch_dtype(args.dtype), steps=args.steps
+    )
     size = sum(f.stat().st_size for f in dest.rglob("*") if f.is_file())
     print(f"exported {dest} ({size / 1e6:.1f} MB; adapters: {adapter_names(dest) or 'none'})")
     return 0

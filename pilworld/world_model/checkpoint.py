@@ -90,13 +90,21 @@ def load_world_model(
 
 
 def export_model(
-    source: str | Path, out: str | Path, *, adapters: list[Path] | None = None, dtype: torch.dtype = torch.float16
+    source: str | Path,
+    out: str | Path,
+    *,
+    adapters: list[Path] | None = None,
+    dtype: torch.dtype = torch.float16,
+    steps: int | None = None,
 ) -> Path:
-    """Write a shippable copy of a model folder: weights cast to ``dtype`` and the LoRA adapters of ``adapters``
-    (stage-2 model folders fine-tuned from ``source``, or adapter folders) gathered under ``adapters/``."""
+    """Write a shippable copy of a model folder: weights cast to ``dtype``, the LoRA adapters of ``adapters``
+    (stage-2 model folders fine-tuned from ``source``, or adapter folders) gathered under ``adapters/``, and
+    optionally a new default number of sampling steps."""
     import shutil
 
     model = load_model(source)
+    if steps is not None:
+        model.config = model.config.replace(steps=steps)
     dest = save_model(model, out, dtype=dtype)
     for src in adapters or []:
         src = Path(src)
