@@ -52,13 +52,17 @@ def plot_training_curve(run: str | Path, out: str | Path, title: str | None = No
         axes[1].plot(steps[w - 1 :] if len(steps) >= w else steps, _smooth(loss, w))
         axes[1].set(title=f"{den_phase}: latent loss (moving mean of {w})", xlabel="step", ylabel="loss", yscale="log")
         val = [r for r in den if r.get("val")]
+        # Runs before the pooled metric logged the mean of per-frame PSNRs (capped at 100 dB on still views).
+        pooled = bool(val) and "psnr_pooled" in next(iter(val[0]["val"].values()))
+        key = "psnr_pooled" if pooled else "psnr"
         for view in val[0]["val"] if val else []:
             s = [r["step"] + 1 for r in val]
-            (line,) = axes[2].plot(s, [r["val"][view]["psnr"] for r in val], marker="o", label=view)
-            frozen = [r["val"][view].get("psnr_frozen") for r in val]
+            (line,) = axes[2].plot(s, [r["val"][view][key] for r in val], marker="o", label=view)
+            frozen = [r["val"][view].get(f"{key}_frozen") for r in val]
             if all(f is not None for f in frozen):
                 axes[2].plot(s, frozen, ls="--", color=line.get_color(), alpha=0.6)
-        axes[2].set(title="validation PSNR, pooled (solid) vs frozen (dashed)", xlabel="step", ylabel="PSNR [dB]")
+        what = "pooled" if pooled else "mean per frame, 100 dB cap"
+        axes[2].set(title=f"validation PSNR ({what}); frozen dashed", xlabel="step", ylabel="PSNR [dB]")
         if val:
             axes[2].legend(fontsize=8)
     fig.suptitle(title or str(run))

@@ -414,8 +414,8 @@ def validation_scores(model: PilWorldModel, batch: Any) -> dict[str, Any]:
         p, t = pred[:, i], batch.future[:, i]
         frozen = batch.current[:, i, None].expand_as(t)
         out[v] = {
-            "psnr": float(psnr_from_mse(mse(p, t).mean())),
+            "psnr_pooled": float(psnr_from_mse(mse(p, t).mean())),
             "ssim": float(ssim(p, t).mean()),
-            "psnr_frozen": float(psnr_from_mse(mse(frozen, t).mean())),
+            "psnr_pooled_frozen": float(psnr_from_mse(mse(frozen, t).mean())),
         }
     return out

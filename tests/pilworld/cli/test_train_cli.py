@@ -114,5 +114,8 @@ def test_train_plot_writes_the_curve(tmp_path: Path) -> None:
     (run / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
     out = tmp_path / "curve.png"
     assert main(["train", "plot", str(run), "--out", str(out)]) == 0
+    pooled = {"cam_high": {"psnr_pooled": 21.0, "ssim": 0.9, "psnr_pooled_frozen": 18.0}}
+    (run / "log.jsonl").write_text(json.dumps({"phase": "denoiser", "step": 0, "loss": 1.0, "val": pooled}) + "\n")
+    assert main(["train", "plot", str(run), "--out", str(out)]) == 0
     assert out.stat().st_size > 10_000 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["train", "plot", str(tmp_path / "missing"), "--out", str(out)]) == 2

@@ -145,7 +145,7 @@ def test_cli_prints_a_table_then_the_json(
 
     loaded: list[Path] = []
 
-    def load_world_model(path: Path) -> Loaded:
+    def load_world_model(path: Path, adapter: str | None = None) -> Loaded:
         loaded.append(path)
         return Loaded(_info())
 

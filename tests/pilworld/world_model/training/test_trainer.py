@@ -143,7 +143,8 @@ def test_pretrain_end_to_end(pretrained: Path) -> None:
     final = json.loads((pretrained / "final_validation.json").read_text())
     assert set(final) == {"cam_high", "cam_left_wrist", "cam_right_wrist"}
     for scores in final.values():
-        assert np.isfinite(scores["psnr"]) and -1.0 <= scores["ssim"] <= 1.0 and np.isfinite(scores["psnr_frozen"])
+        assert np.isfinite(scores["psnr_pooled"]) and -1.0 <= scores["ssim"] <= 1.0
+        assert np.isfinite(scores["psnr_pooled_frozen"])
     # The VAE's latent statistics went into the saved config; latents were cached per (episode, view).
     stats = json.loads((pretrained / "latent_stats.json").read_text())
     model = load_world_model(model_dir)
