@@ -178,7 +178,7 @@ PRESETS: dict[str, WorldModelConfig] = {
         denoiser=DenoiserConfig(width=64, depth=2, heads=2, control_channels=4, text_buckets=256, text_width=16),
         steps=2,
     ),
-    # The CPU default for the simulated rig at 128×128. One Euler step: on held-out clips it scored the best
+    # The CPU default for the simulated rig at 128×128. One Euler step: on validation clips it scored the best
     # PSNR and SSIM of 1, 2, 4 and 8 steps, and is the fastest (docs/world_model.md).
     "small": WorldModelConfig(preset="small", steps=1),
     # For a GPU: twice the width, twice the depth, a wider VAE.
