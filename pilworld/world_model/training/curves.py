@@ -52,17 +52,21 @@ def plot_training_curve(run: str | Path, out: str | Path, title: str | None = No
         axes[1].plot(steps[w - 1 :] if len(steps) >= w else steps, _smooth(loss, w))
         axes[1].set(title=f"{den_phase}: latent loss (moving mean of {w})", xlabel="step", ylabel="loss", yscale="log")
         val = [r for r in den if r.get("val")]
-        # Runs before the pooled metric logged the mean of per-frame PSNRs (capped at 100 dB on still views).
-        pooled = bool(val) and "psnr_pooled" in next(iter(val[0]["val"].values()))
-        key = "psnr_pooled" if pooled else "psnr"
-        for view in val[0]["val"] if val else []:
-            s = [r["step"] + 1 for r in val]
-            (line,) = axes[2].plot(s, [r["val"][view][key] for r in val], marker="o", label=view)
-            frozen = [r["val"][view].get(f"{key}_frozen") for r in val]
-            if all(f is not None for f in frozen):
-                axes[2].plot(s, frozen, ls="--", color=line.get_color(), alpha=0.6)
-        what = "pooled" if pooled else "mean per frame, 100 dB cap"
-        axes[2].set(title=f"validation PSNR ({what}); frozen dashed", xlabel="step", ylabel="PSNR [dB]")
+        # Runs before the pooled metric logged the mean of per-frame PSNRs (capped at 100 dB on still views);
+        # a resumed run can hold both, so each family is drawn on its own (legacy faded, pooled solid).
+        views = list(val[0]["val"]) if val else []
+        for i, view in enumerate(views):
+            color = f"C{i}"
+            for key, style in (("psnr", {"marker": "x", "alpha": 0.4}), ("psnr_pooled", {"marker": "o"})):
+                pts = [(r["step"] + 1, r["val"][view]) for r in val if key in r["val"].get(view, {})]
+                if not pts:
+                    continue
+                label = view if key == "psnr_pooled" else f"{view} (mean per frame)"
+                axes[2].plot([p[0] for p in pts], [p[1][key] for p in pts], color=color, label=label, **style)
+                frozen = [(p[0], p[1].get(f"{key}_frozen")) for p in pts if p[1].get(f"{key}_frozen") is not None]
+                if key == "psnr_pooled" and frozen:
+                    axes[2].plot([f[0] for f in frozen], [f[1] for f in frozen], ls="--", color=color, alpha=0.6)
+        axes[2].set(title="validation PSNR (pooled: solid; frozen: dashed)", xlabel="step", ylabel="PSNR [dB]")
         if val:
             axes[2].legend(fontsize=8)
     fig.suptitle(title or str(run))
