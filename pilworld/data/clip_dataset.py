@@ -28,7 +28,7 @@ from pilworld.data.reader import EpisodeStore, list_column
 from pilworld.data.spec import ACTION_KEY, STATE_KEY
 
 
-def _save_npy(path: Path, array: NDArray[np.uint8]) -> None:
+def save_npy(path: Path, array: NDArray[Any]) -> None:
     with path.open("wb") as fh:  # a handle, so np.save does not append ".npy" to the temporary name
         np.save(fh, array, allow_pickle=False)
 
@@ -118,7 +118,7 @@ class ClipDataset(Dataset[dict[str, Any]]):
         path = self._cache_path(episode, view)
         if not path.is_file():
             decoded = self.store.frames(episode, view)  # one decode of the whole video
-            atomic_write(path, lambda tmp: _save_npy(tmp, decoded[needed]), durable=False)
+            atomic_write(path, lambda tmp: save_npy(tmp, decoded[needed]), durable=False)
         frames = np.load(path, mmap_mode="r", allow_pickle=False)
         row = np.full(int(self.store.episodes[episode]["length"]), -1, dtype=np.int64)
         row[needed] = np.arange(len(needed))

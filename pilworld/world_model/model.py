@@ -68,10 +68,6 @@ class PilWorldModel(nn.Module):
         img = self.vae.decode(z)
         return img.reshape(*lead, *img.shape[1:])
 
-    def decode(self, latents: torch.Tensor) -> torch.Tensor:
-        """Normalised latents [..., C, h, w] → uint8 images [..., 3, 8h, 8w]."""
-        return to_uint8(self.decode_unit(latents).clamp(-1.0, 1.0))
-
     def render_future(self, future: torch.Tensor, current_latents: torch.Tensor, current: torch.Tensor) -> torch.Tensor:
         """Future latents [B, V, K, C, h, w] → uint8 frames [B, V, K, 3, H, W].
 

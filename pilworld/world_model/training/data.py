@@ -11,6 +11,7 @@ once (``latents/`` in the run folder, float16), so a training step never runs th
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,11 +23,12 @@ from tqdm import tqdm
 
 from pilworld.config.rig import RigConfig
 from pilworld.data.atomic import atomic_write
-from pilworld.data.clip_dataset import ClipDataset
+from pilworld.data.clip_dataset import ClipDataset, save_npy
 from pilworld.data.clips import ClipSpec, mix_weights
 from pilworld.world_model.base import WorldModelBatch
 from pilworld.world_model.batching import collate_clips, control_renderer, resize_images
 from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.vae import to_unit
 
 
 def step_generator(seed: int, step: int, rank: int = 0, stream: int = 0) -> torch.Generator:
@@ -172,19 +174,14 @@ class TrainData:
                             )
                             parts.append(self.model.encode(resize_images(x, cfg.height, cfg.width)).half().numpy())
                     z = np.concatenate(parts)
-
-                    def write(tmp: Path, z: NDArray[np.float16] = z) -> None:
-                        with tmp.open("wb") as fh:
-                            np.save(fh, z, allow_pickle=False)
-
-                    atomic_write(path, write, durable=False)
+                    atomic_write(path, functools.partial(save_npy, array=z), durable=False)
                 self._latents[(e, v)] = np.load(path, mmap_mode="r", allow_pickle=False)
 
     def latent_stats(self, seed: int, samples: int = 512) -> tuple[list[float], list[float]]:
         """Per-channel mean and std of raw VAE latents over random training frames (for normalisation)."""
         x = self.frame_batch(seed, 0, samples)
         with torch.no_grad():
-            mean, _ = self.model.vae.encode(x.float().div(127.5).sub(1.0))
+            mean, _ = self.model.vae.encode(to_unit(x))
         return mean.mean(dim=(0, 2, 3)).tolist(), mean.std(dim=(0, 2, 3)).clamp_min(1e-3).tolist()
 
     def latent_batch(self, clip_indices: NDArray[np.int64]) -> LatentBatch:

@@ -36,6 +36,7 @@ from pilworld.world_model.model import PilWorldModel
 from pilworld.world_model.training.data import DataSelection, TrainData, step_generator
 from pilworld.world_model.training.distributed import Dist, init_distributed, shutdown
 from pilworld.world_model.training.state import EMA, latest_checkpoint, load_checkpoint, save_checkpoint
+from pilworld.world_model.vae import to_unit
 
 # Debug hook for the DDP tests (see Trainer._dump_rank_weights).
 DUMP_RANK_WEIGHTS_ENV = "PILWORLD_DUMP_RANK_WEIGHTS"
@@ -283,7 +284,7 @@ class Trainer:
             def vae_loss(step: int) -> tuple[torch.Tensor, dict[str, float]]:
                 x = data.frame_batch(c.seed, step, c.vae_batch, d.rank, d.world).to(d.device())
                 out: tuple[torch.Tensor, dict[str, float]] = objective(
-                    x.float().div(127.5).sub(1.0), step_generator(c.seed, step, d.rank, 2)
+                    to_unit(x), step_generator(c.seed, step, d.rank, 2)
                 )
                 return out
 
