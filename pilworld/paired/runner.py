@@ -1,0 +1,278 @@
+"""``pilworld paired run``: every subtask twice — on the robot and in the world model — from one start.
+
+For each (checkpoint, subtask) pair the robot is brought to the subtask's start (on the simulated rig:
+``SimRobot.reset(seed, subtask)``, which lays out the task with the earlier subtasks done and records
+the H_h history frames), then
+
+1. the **imagined branch** runs the policy in closed loop against the world model, starting from that
+   start observation and its real history (the robot stands still meanwhile);
+2. the **real branch** runs the same policy, reset with the same seed, on the robot.
+
+Both rollouts are appended to one dataset in the episode store with ``origin`` imagined / real and
+``extra.pair`` naming the pair; the real branch's privileged checker verdict goes to the outcomes
+table. Each episode is committed as soon as its branch finishes, so a killed run loses at most the
+branch in flight; rerunning the same command skips every branch already stored and, since starts,
+policies and the world model are all seeded, ends with the same dataset an uninterrupted run writes.
+Wall times per branch go to ``paired_timings.jsonl`` beside the dataset (not into it: they differ
+between runs).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from pilworld.config.rig import RigConfig
+from pilworld.control_video.gamma import ControlVideo
+from pilworld.data.atomic import write_json
+from pilworld.data.outcomes import Outcome, record_outcomes
+from pilworld.data.reader import EpisodeStore
+from pilworld.data.writer import EpisodeWriter
+from pilworld.envs import ImaginedEnv, RobotEnv
+from pilworld.paired.episodes import rollout_episode
+from pilworld.policies.registry import make_policy
+from pilworld.rollout import Rollout, closed_loop
+from pilworld.types import ChunkSpec, Subtask
+from pilworld.world_model.base import WorldModel
+
+ORIGINS = ("imagined", "real")
+JUDGE_ID = "sim_checker"
+CONFIG_FILE = "paired_config.json"
+TIMINGS_FILE = "paired_timings.jsonl"
+
+
+@dataclass(frozen=True)
+class PairedSubtask:
+    """One pair: a policy checkpoint on one subtask (task, index, layout seed)."""
+
+    checkpoint: str
+    subtask: Subtask
+
+    @property
+    def pair_id(self) -> str:
+        s = self.subtask
+        return f"{s.task}/{self.checkpoint}/seed{s.seed}/subtask{s.index}"
+
+    @property
+    def seed(self) -> int:
+        """The policy and world-model seed of this pair (the same in both branches)."""
+        return self.subtask.seed * 100 + self.subtask.index
+
+
+@dataclass
+class PairedConfig:
+    """Everything that decides a paired run's results (stored in ``paired_config.json``)."""
+
+    rig: str
+    task: str
+    checkpoints: list[str]
+    subtasks: int
+    out: str
+    seed: int = 0
+    world_model: str = ""  # a model folder; "" = the packaged checkpoint
+    adapter: str = "auto"  # "auto": the task's LoRA adapter when the model has one; "none"; or a name
+    steps: int | None = None  # sampling steps; None = the model's default
+    video_mode: str = "lossless"  # bit-exact frames, so the two stored start frames compare byte for byte
+    spec: ChunkSpec = field(default_factory=ChunkSpec)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.subtasks, bool) or not isinstance(self.subtasks, int) or self.subtasks < 1:
+            raise ValueError(f"subtasks: expected an integer >= 1, got {self.subtasks!r}")
+        if not self.checkpoints or any(not c.strip() for c in self.checkpoints):
+            raise ValueError(f"checkpoints: expected one or more names, got {self.checkpoints!r}")
+        if len(set(self.checkpoints)) != len(self.checkpoints):
+            raise ValueError(f"checkpoints: listed twice: {self.checkpoints!r}")
+        if self.steps is not None and self.steps < 1:
+            raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
+
+    def to_json(self) -> dict[str, Any]:
+        d = asdict(self)
+        d.pop("out")
+        return d
+
+
+def plan_subtasks(
+    task: str, count: int, seed0: int, checkpoints: Sequence[str], num_subtasks: int, instruction: str
+) -> list[PairedSubtask]:
+    """``count`` subtasks per checkpoint: subtask indices 0, 1, … of layout ``seed0``, then of ``seed0 + 1``, …"""
+    plan = []
+    for ckpt in checkpoints:
+        for i in range(count):
+            sub = Subtask(task=task, index=i % num_subtasks, instruction=instruction, seed=seed0 + i // num_subtasks)
+            plan.append(PairedSubtask(ckpt, sub))
+    return plan
+
+
+def stored_branches(root: Path) -> dict[str, set[str]]:
+    """Pair id → origins already committed in the dataset at ``root``."""
+    if not (root / "meta" / "info.json").is_file():
+        return {}
+    done: dict[str, set[str]] = {}
+    for row in EpisodeStore(root).episodes:
+        extra = json.loads(row.get("extra") or "{}")
+        if "pair" in extra:
+            done.setdefault(str(extra["pair"]), set()).add(str(row.get("origin")))
+    return done
+
+
+def _check_config(root: Path, cfg: PairedConfig) -> None:
+    path = root / CONFIG_FILE
+    want = json.loads(json.dumps(cfg.to_json()))
+    if path.is_file():
+        have = json.loads(path.read_text())
+        diff = sorted(k for k in set(have) | set(want) if k != "subtasks" and have.get(k) != want.get(k))
+        if diff:
+            raise ValueError(
+                f"{root}: holds a paired run with different settings ({', '.join(diff)}); "
+                "use another --out folder, or the same arguments to resume"
+            )
+    root.mkdir(parents=True, exist_ok=True)
+    write_json(path, want)
+
+
+def load_model(cfg: PairedConfig, rig: RigConfig) -> tuple[WorldModel, str | None]:
+    """The world model (with the task's adapter under ``adapter="auto"``), checked against the rig."""
+    from pilworld.world_model import DEFAULT_CHECKPOINT
+    from pilworld.world_model.checkpoint import adapter_names, load_world_model
+
+    path = Path(cfg.world_model) if cfg.world_model else Path(DEFAULT_CHECKPOINT)
+    names = adapter_names(path)
+    if cfg.adapter == "auto":
+        adapter = cfg.task if cfg.task in names else None
+    elif cfg.adapter == "none":
+        adapter = None
+    else:
+        if cfg.adapter not in names:
+            raise ValueError(f"adapter: {cfg.adapter!r} is not in {path} (has {names or 'none'})")
+        adapter = cfg.adapter
+    model = load_world_model(path, adapter=adapter)
+    info = model.info
+    if set(info.views) != set(rig.cameras):
+        raise ValueError(
+            f"world model {path} predicts views {list(info.views)}, rig {rig.name!r} has {list(rig.cameras)}"
+        )
+    if (info.width, info.height) != (rig.image_size.width, rig.image_size.height):
+        raise ValueError(
+            f"world model {path} works at {info.width}x{info.height}, rig {rig.name!r} renders "
+            f"{rig.image_size.width}x{rig.image_size.height}"
+        )
+    if info.future != cfg.spec.frames:
+        raise ValueError(
+            f"world model {path} predicts K={info.future} frames per round, the run uses K={cfg.spec.frames}"
+        )
+    return model, adapter
+
+
+def _robot(rig_path: str, task: str) -> Any:
+    """The robot of the rig. Only the simulated rig exists until the real drivers land (issue #8)."""
+    rig = RigConfig.load(rig_path)
+    if rig.head_camera.look_at is None:
+        raise ValueError(
+            f"rig {rig.name!r} describes real hardware (a calibrated head camera); paired runs on real robots need "
+            "the hardware drivers of issue #8 — use a simulated rig such as configs/rig/sim_dual_ur5e.yaml"
+        )
+    from hw_drivers.sim.robot import SimRobot
+
+    return SimRobot(rig_path, task)
+
+
+def _branch_record(pair: PairedSubtask, rollout: Rollout) -> dict[str, Any]:
+    return {
+        "pair": pair.pair_id,
+        "origin": rollout.origin,
+        "seconds": round(rollout.seconds, 4),
+        "policy_ms": [round(t.policy_s * 1000, 2) for t in rollout.timings],
+        "env_ms": [round(t.env_s * 1000, 2) for t in rollout.timings],
+    }
+
+
+def paired_run(
+    cfg: PairedConfig, *, progress: bool = True, on_branch: Callable[[PairedSubtask, str], None] | None = None
+) -> dict[str, Any]:
+    """Run (or resume) a paired run; returns a summary. ``on_branch`` is called after each stored branch."""
+    from hw_drivers.sim.tasks import make_task
+    from pilworld.collection.collect import dataset_spec
+
+    root = Path(cfg.out)
+    rig = RigConfig.load(cfg.rig)
+    task = make_task(cfg.task)
+    model, adapter = load_model(cfg, rig)
+    store_spec = dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)
+    _check_config(root, cfg)
+    plan = plan_subtasks(cfg.task, cfg.subtasks, cfg.seed, cfg.checkpoints, task.num_subtasks, task.instruction)
+    done = stored_branches(root)
+    todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS)]
+    gamma = ControlVideo.from_rig(rig, cfg.spec)
+    policies = {c: make_policy(c, rig, cfg.spec) for c in cfg.checkpoints}
+    t_start = time.monotonic()
+    records: list[dict[str, Any]] = []
+    bar = tqdm(
+        total=len(plan), initial=len(plan) - len(todo), desc="paired subtasks", unit="pair", disable=not progress
+    )
+    with _robot(cfg.rig, cfg.task) as robot, EpisodeWriter(root, store_spec) as writer:
+        for pair in todo:
+            have = done.get(pair.pair_id, set())
+            sub = pair.subtask
+            start = robot.reset(seed=sub.seed, subtask=sub.index, history=cfg.spec.history, stride=cfg.spec.stride)
+            policy = policies[pair.checkpoint]
+            extra = {
+                "pair": pair.pair_id,
+                "sim_task": cfg.task,
+                "adapter": adapter or "",
+                "world_model": cfg.world_model or "packaged",
+            }
+            for origin in ORIGINS:
+                if origin in have:
+                    continue
+                policy.reset(seed=pair.seed)
+                if origin == "imagined":
+                    env: ImaginedEnv | RobotEnv = ImaginedEnv(
+                        model, gamma, cfg.spec, control_rate_hz=rig.control_rate_hz, seed=pair.seed, steps=cfg.steps
+                    )
+                else:
+                    env = RobotEnv(robot, cfg.spec, pace=False)  # the simulator runs faster than real time
+                rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
+                index = writer.append(rollout_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra))
+                if origin == "real":
+                    check = robot.check_subtask(sub.index)
+                    record_outcomes(
+                        root, [Outcome(index, JUDGE_ID, "sim_state", check.success, rollout_length(rollout))]
+                    )
+                rec = _branch_record(pair, rollout)
+                records.append(rec)
+                with (root / TIMINGS_FILE).open("a") as fh:
+                    fh.write(json.dumps(rec) + "\n")
+                if on_branch is not None:
+                    on_branch(pair, origin)
+            bar.update(1)
+    bar.close()
+    return _summary(root, plan, records, time.monotonic() - t_start)
+
+
+def rollout_length(rollout: Rollout) -> int:
+    return len(rollout.observations)
+
+
+def _summary(root: Path, plan: list[PairedSubtask], records: list[dict[str, Any]], seconds: float) -> dict[str, Any]:
+    from pilworld.data.info import dataset_info
+
+    per_origin: dict[str, list[float]] = {o: [r["seconds"] for r in records if r["origin"] == o] for o in ORIGINS}
+    return {
+        "out": str(root),
+        "pairs_planned": len(plan),
+        "branches_run": len(records),
+        "seconds": round(seconds, 2),
+        "seconds_per_subtask": {
+            o: {"median": round(float(np.median(v)), 3), "mean": round(float(np.mean(v)), 3), "n": len(v)}
+            for o, v in per_origin.items()
+            if v
+        },
+        "dataset": dataset_info(root),
+    }
