@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, calibrate, control_video, data, sim, train
+from pilworld.cli import bench, calibrate, control_video, data, policy, sim, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,6 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     control_video.register(sub)
     data.register(sub)
     bench.register(sub)
+    policy.register(sub)
     sim.register(sub)
     train.register(sub)
     return parser
