@@ -170,14 +170,16 @@ def load_model(cfg: PairedConfig, rig: RigConfig) -> tuple[WorldModel, str | Non
     return model, adapter
 
 
-def _robot(rig_path: str, task: str) -> Any:
-    """The robot of the rig. Only the simulated rig exists until the real drivers land (issue #8)."""
-    rig = RigConfig.load(rig_path)
+def _require_sim(rig: RigConfig) -> None:
+    """Only the simulated rig has a robot until the real drivers land (issue #8)."""
     if rig.head_camera.look_at is None:
         raise ValueError(
             f"rig {rig.name!r} describes real hardware (a calibrated head camera); paired runs on real robots need "
             "the hardware drivers of issue #8 — use a simulated rig such as configs/rig/sim_dual_ur5e.yaml"
         )
+
+
+def _robot(rig_path: str, task: str) -> Any:
     from hw_drivers.sim.robot import SimRobot
 
     return SimRobot(rig_path, task)
@@ -202,6 +204,7 @@ def paired_run(
 
     root = Path(cfg.out)
     rig = RigConfig.load(cfg.rig)
+    _require_sim(rig)
     task = make_task(cfg.task)
     model, adapter = load_model(cfg, rig)
     store_spec = dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)

@@ -1,0 +1,110 @@
+"""RobotEnv on the simulated rig, the safety filter, and one closed loop driving both branches alike."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from hw_drivers.sim.robot import SimRobot
+from pilworld.config.rig import RigConfig
+from pilworld.control_video.gamma import ControlVideo
+from pilworld.envs import EnvError, ImaginedEnv, LimitFilter, RobotEnv
+from pilworld.policies.base import CallablePolicy, PolicyError
+from pilworld.policies.scripted import ScriptedPolicy
+from pilworld.rollout import closed_loop
+from pilworld.types import ChunkSpec, Observation
+from pilworld.world_model import DEFAULT_CHECKPOINT
+from pilworld.world_model.checkpoint import load_world_model
+
+SIM = "configs/rig/sim_dual_ur5e.yaml"
+SPEC = ChunkSpec(rounds=2)
+
+
+@pytest.fixture(scope="module")
+def robot() -> Iterator[SimRobot]:
+    with SimRobot(SIM, "sort_cubes") as r:
+        yield r
+
+
+def test_limit_filter_clips_limits_and_speed_and_refuses_nan(robot: SimRobot) -> None:
+    spec = robot.spec
+    f = LimitFilter(spec)
+    f.reset(np.zeros(14, np.float32))
+    out = f(np.full(14, 100.0))
+    assert np.all(out <= spec.upper_array) and np.all(out >= spec.lower_array)
+    assert np.all(np.abs(out) <= np.pi / 30 + 1e-6)  # one control step at the joints' max speed
+    with pytest.raises(ValueError, match="finite"):
+        f(np.full(14, np.nan))
+    with pytest.raises(ValueError, match="shape"):
+        f(np.zeros(7))
+
+
+def test_robot_env_records_k_frames_at_stride(robot: SimRobot) -> None:
+    start = robot.reset(seed=0, subtask=0)
+    env = RobotEnv(robot, SPEC, pace=False)
+    assert env.reset(start) is start.observation
+    chunk = np.tile(start.observation.state, (SPEC.horizon, 1))
+    seg = env.step(chunk)
+    assert len(seg.observations) == SPEC.frames and seg.actions.shape == (SPEC.executed_steps, 14)
+    dt = [b.timestamp - a.timestamp for a, b in zip(seg.observations, seg.observations[1:], strict=False)]
+    assert np.allclose(dt, SPEC.stride / 30.0)
+    assert robot.steps == SPEC.executed_steps
+
+
+def test_robot_env_refuses_a_robot_away_from_the_start(robot: SimRobot) -> None:
+    start = robot.reset(seed=0, subtask=0)
+    moved = start.observation.state.copy()
+    moved[0] += 0.3
+    for _ in range(20):
+        robot.send_action(moved)
+    with pytest.raises(EnvError, match="not at the start"):
+        RobotEnv(robot, SPEC, pace=False).reset(start)
+    with pytest.raises(EnvError, match="before reset"):
+        RobotEnv(robot, SPEC, pace=False).step(np.zeros((50, 14), np.float32))
+
+
+def test_policy_sees_the_same_kind_of_observation_from_both_branches(robot: SimRobot) -> None:
+    """Type, views, shape and dtype of every observation the policy receives match across branches."""
+    rig = RigConfig.load(SIM)
+    seen: dict[str, list[Observation]] = {"real": [], "imagined": []}
+    scripted = ScriptedPolicy(rig, horizon=SPEC.horizon)
+    branch = "real"
+
+    def spy(obs: Observation, instruction: str) -> np.ndarray:
+        seen[branch].append(obs)
+        return scripted.infer(obs, instruction)
+
+    policy = CallablePolicy(spy, "spy")
+    start = robot.reset(seed=1, subtask=0)
+    imagined = ImaginedEnv(load_world_model(DEFAULT_CHECKPOINT), ControlVideo.from_rig(rig, SPEC), SPEC)
+    branch = "imagined"
+    scripted.reset(seed=1)
+    closed_loop(policy, imagined, start.subtask.instruction, SPEC.rounds, start=start)
+    branch = "real"
+    scripted.reset(seed=1)
+    out = closed_loop(policy, RobotEnv(robot, SPEC, pace=False), start.subtask.instruction, SPEC.rounds, start=start)
+    assert len(out.segments) == SPEC.rounds and len(out.observations) == 1 + SPEC.rounds * SPEC.frames
+    assert len(seen["real"]) == len(seen["imagined"]) == SPEC.rounds
+    assert seen["real"][0] is seen["imagined"][0] is start.observation  # the same start, byte for byte
+    for a, b in zip(seen["real"], seen["imagined"], strict=True):
+        assert type(a) is type(b) is Observation
+        assert a.views == b.views
+        for v in a.views:
+            assert a.images[v].shape == b.images[v].shape and a.images[v].dtype == b.images[v].dtype == np.uint8
+        assert a.state.shape == b.state.shape and a.state.dtype == b.state.dtype == np.float32
+        assert isinstance(a.timestamp, float) and isinstance(b.timestamp, float)
+
+
+def test_closed_loop_validates_its_arguments(robot: SimRobot) -> None:
+    start = robot.reset(seed=0, subtask=0)
+    env = RobotEnv(robot, SPEC, pace=False)
+    ok = CallablePolicy(lambda o, i: np.tile(o.state, (50, 1)))
+    with pytest.raises(ValueError, match="rounds"):
+        closed_loop(ok, env, "x", 0, start=start)
+    with pytest.raises(ValueError, match="instruction"):
+        closed_loop(ok, env, " ", 1, start=start)
+    bad = CallablePolicy(lambda o, i: np.full((50, 14), np.nan), "nanny")
+    with pytest.raises(PolicyError, match=r"nanny.*finite"):
+        closed_loop(bad, env, "x", 1, start=start)
