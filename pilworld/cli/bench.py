@@ -53,6 +53,29 @@ def register(sub: Any) -> None:
     sm.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     sm.set_defaults(handler=_sim)
 
+    cb = benches.add_parser(
+        "calibration",
+        help="calibration: intrinsics and hand-eye accuracy, hand-eye stability sweep per method (chart PNG)",
+    )
+    cb.add_argument("--seeds", type=int, default=20, help="intrinsics seeds, 20 views each (default 20)")
+    cb.add_argument("--views", type=int, default=20, help="views per intrinsics seed (default 20)")
+    cb.add_argument("--trials", type=int, default=30, help="hand-eye trials per sweep point (default 30)")
+    cb.add_argument(
+        "--handeye-source",
+        choices=["auto", "sim", "synthetic"],
+        default=None,
+        help="headline hand-eye figures: rendered simulated rig (sim), synthetic, or sim when available "
+        "(auto, the default; --quick defaults to synthetic)",
+    )
+    cb.add_argument("--handeye-poses", type=int, default=20, help="gripper poses of the headline run (default 20)")
+    cb.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config of the sim hand-eye run")
+    cb.add_argument("--out", type=Path, default=Path("bench_out/calibration"), help="chart folder (created)")
+    cb.add_argument("--quick", action="store_true", help="2 seeds, 2 trials per point: a few seconds (tests)")
+    cb.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    cb.add_argument("--seed", type=int, default=0)
+    cb.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    cb.set_defaults(handler=_calibration)
+
     wp = benches.add_parser("world-model-presets", help="parameter counts and chunk latency of every native preset")
     wp.add_argument("--presets", default="", help="comma-separated presets (default: all)")
     wp.add_argument("--repeats", type=int, default=10, help="timed calls per preset; the median is reported")
@@ -160,6 +183,52 @@ def _sim(args: argparse.Namespace) -> int:
         print(f"  {task}: " + ", ".join(f"{c} {r:.2f}" for c, r in rates.items()))
     if args.json:
         print(json.dumps(result))
+    return 0
+
+
+def _calibration(args: argparse.Namespace) -> int:
+    from pilworld.bench.calibration import run_calibration_bench
+
+    r = run_calibration_bench(
+        seeds=args.seeds,
+        views=args.views,
+        trials=args.trials,
+        quick=args.quick,
+        out_dir=args.out,
+        handeye_source=args.handeye_source,
+        handeye_poses=args.handeye_poses,
+        rig_path=args.rig,
+        seed=args.seed,
+        progress=not args.no_progress,
+    )
+    print(
+        f"intrinsics ({r['intrinsics_seeds']} seeds x {r['intrinsics_views']} views, {r['intrinsics_noise_px']} px): "
+        f"|Δf|/f {r['intrinsics_focal_rel_err_percent']:.3f} %, principal point {r['intrinsics_pp_err_px']:.2f} px, "
+        f"RMS {r['intrinsics_rms_px']:.3f} px (max {r['intrinsics_rms_px_max']:.3f}), 95 % intervals cover "
+        f">= {r['intrinsics_ci95_coverage']:.0%} of seeds"
+    )
+    print(
+        f"hand-eye ({r['handeye_source']}): {r['handeye_trans_err_mm']:.2f} mm, {r['handeye_rot_err_deg']:.3f}°, "
+        f"gripper reprojection {r['gripper_reproj_err_px']:.2f} px"
+    )
+    settings = r["sweep_settings"]
+    print(f"sweep: {settings['trials']} trials per point, OpenCV {r['opencv_version']} (median mm / median deg)")
+    for axis, per in r["sweep"].items():
+        print(f"  {axis}:")
+        for method, stats in per.items():
+            cells = [
+                f"{s['value']:g}: "
+                + (
+                    "refused"
+                    if s["trans_mm_median"] is None
+                    else f"{s['trans_mm_median']:.2f}/{s['rot_deg_median']:.2f}"
+                )
+                for s in stats
+            ]
+            print(f"    {method:<18} " + "  ".join(cells))
+    print(f"chart: {r['chart']}")
+    if args.json:
+        print(json.dumps(r))
     return 0
 
 
