@@ -136,3 +136,27 @@ def test_cli_runs_and_data_info_shows_both_origins(tmp_path: Path, capsys: pytes
     assert set(info["by_origin"]) == {"imagined", "real"}
     assert main(["paired", "run", "--task", "juggle", "--subtasks", "1", "--out", str(out)]) == 2
     assert "unknown task" in capsys.readouterr().err
+
+
+def test_a_policy_served_over_openpi_gives_the_local_result(tmp_path: Path) -> None:
+    """The same scripted checkpoint, local and behind the loopback openpi server: identical branches."""
+    from pilworld.config.rig import RigConfig
+    from pilworld.policies.openpi.server import PolicyServer
+    from pilworld.policies.scripted import ScriptedPolicy
+
+    one = ChunkSpec(rounds=1)
+    local = tmp_path / "local"
+    paired_run(_cfg(local, subtasks=1, spec=one), progress=False)
+    rig = RigConfig.load(SIM)
+    size = (rig.image_size.height, rig.image_size.width)  # announced, so the client sends native images
+    with PolicyServer(ScriptedPolicy(rig, "scripted_step_30k"), image_size=size) as server:
+        remote = tmp_path / "remote"
+        paired_run(_cfg(remote, subtasks=1, spec=one, checkpoints=[server.url]), progress=False)
+    a, b = EpisodeStore(local), EpisodeStore(remote)
+    assert a.num_episodes == b.num_episodes == 2
+    for i in range(2):
+        ea, eb = a.load(i), b.load(i)
+        assert ea.origin == eb.origin and eb.checkpoint == server.url
+        np.testing.assert_array_equal(ea.action, eb.action)
+        for v in ea.images:
+            np.testing.assert_array_equal(ea.images[v], eb.images[v])
