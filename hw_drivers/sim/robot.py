@@ -7,7 +7,9 @@ stiff position servos; arm joints are rate-limited to the UR's 180 °/s and grip
 
 Sim-only extras: :meth:`SimRobot.reset` builds a subtask start (earlier subtasks already done, with
 ``H_h`` history frames at stride Δ before it), :meth:`SimRobot.object_poses` and
-:meth:`SimRobot.check_subtask` expose privileged task state to judges — never to policies.
+:meth:`SimRobot.check_subtask` expose privileged task state to judges — never to policies. For hand-eye
+calibration a ChArUco board can be mounted on one gripper (``board_mount``) and any camera rendered at
+another resolution with the same field of view (``render(camera, width, height)``).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hw_drivers.robot import DeviceNotConnectedError
+from hw_drivers.sim.board_mount import BoardMount
 from hw_drivers.sim.gl import make_renderer, mujoco
 from hw_drivers.sim.poses import HOME_Q14
 from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, settings_for
@@ -54,9 +57,16 @@ def _check_int(name: str, value: object, *, minimum: int) -> None:
 class SimRobot:
     """The MuJoCo dual-arm rig with one task's objects; implements ``hw_drivers.robot.Robot``."""
 
-    def __init__(self, rig: RigConfig | str | Path = DEFAULT_RIG, task: str | Task = "sort_cubes") -> None:
+    def __init__(
+        self,
+        rig: RigConfig | str | Path = DEFAULT_RIG,
+        task: str | Task = "sort_cubes",
+        *,
+        board_mount: BoardMount | None = None,
+    ) -> None:
         self.rig = rig if isinstance(rig, RigConfig) else RigConfig.load(rig)
         self.task = make_task(task) if isinstance(task, str) else task
+        self.board_mount = board_mount  # a calibration board on one gripper (visual only), or None
         base = self.rig.robot_spec()
         speeds = tuple([ARM_SPEED] * 6 + [GRIP_SPEED]) * 2
         self._spec = RobotSpec(
@@ -69,10 +79,11 @@ class SimRobot:
             max_joint_speed=speeds,
         )
         self.settings = settings_for(self.rig)
-        self.xml = build_mjcf(self.rig, self.task.objects(), self.task.fixtures())
+        self.xml = build_mjcf(self.rig, self.task.objects(), self.task.fixtures(), board_mount=board_mount)
         self._model: Any = None
         self._data: Any = None
         self._renderer: Any = None
+        self._extra_renderers: dict[tuple[int, int], Any] = {}
         self._target = HOME_Q14.copy()
         self.layout: Layout | None = None
         self.subtask: Subtask | None = None
@@ -91,7 +102,8 @@ class SimRobot:
     def connect(self) -> None:
         if self._model is not None:
             return
-        model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}")
+        assets = self.board_mount.assets() if self.board_mount is not None else None
+        model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}", assets)
         self._model = model
         self._data = mujoco.MjData(model)
         w, h = self._spec.image_size
@@ -100,8 +112,10 @@ class SimRobot:
         self.reset(seed=0, subtask=0, history=0)
 
     def disconnect(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
+        for renderer in (self._renderer, *self._extra_renderers.values()):
+            if renderer is not None:
+                renderer.close()
+        self._extra_renderers = {}
         self._model = self._data = self._renderer = None
 
     def __enter__(self) -> SimRobot:
@@ -147,10 +161,25 @@ class SimRobot:
             out[grip] = min(1.0, max(0.0, gap))
         return out.astype(np.float32)
 
-    def render(self, camera: str) -> NDArray[np.uint8]:
+    def render(self, camera: str, width: int | None = None, height: int | None = None) -> NDArray[np.uint8]:
+        """One RGB frame of ``camera``; ``width``/``height`` (default: the rig's image size) keep the field of view.
+
+        A MuJoCo camera's ``fovy`` spans the full image height, so a larger render is the same camera with its
+        intrinsics scaled (``CameraModel.resized``): what a calibration needs from a full-resolution camera.
+        """
         self._require()
-        self._renderer.update_scene(self._data, camera=camera)
-        return np.array(self._renderer.render(), dtype=np.uint8, copy=True)
+        size = (width or self._spec.image_size[0], height or self._spec.image_size[1])
+        renderer = self._renderer
+        if size != tuple(self._spec.image_size):
+            _check_int("width", size[0], minimum=1)
+            _check_int("height", size[1], minimum=1)
+            renderer = self._extra_renderers.get(size)
+            if renderer is None:
+                vis = self._model.vis.global_  # the offscreen buffer must hold the frame
+                vis.offwidth, vis.offheight = max(vis.offwidth, size[0]), max(vis.offheight, size[1])
+                renderer = self._extra_renderers[size] = make_renderer(self._model, *size)
+        renderer.update_scene(self._data, camera=camera)
+        return np.array(renderer.render(), dtype=np.uint8, copy=True)
 
     def observe(self) -> Observation:
         self._require()
@@ -216,7 +245,7 @@ class SimRobot:
                 new.check_index(subtask)
                 self.disconnect()
                 self.task = new
-                self.xml = build_mjcf(self.rig, new.objects(), new.fixtures())
+                self.xml = build_mjcf(self.rig, new.objects(), new.fixtures(), board_mount=self.board_mount)
                 self.connect()
         self.task.check_index(subtask)
         _check_int("history", history, minimum=0)

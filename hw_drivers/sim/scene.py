@@ -18,13 +18,14 @@ with the table and the objects.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from hw_drivers.sim.board_mount import BoardMount
 from hw_drivers.sim.gl import mujoco  # imported through gl: the GL backend is chosen before MuJoCo loads
 from hw_drivers.sim.objects import FixtureSpec, GeomSpec, ObjectSpec
 from pilworld.config.rig import ArmConfig, RigConfig
@@ -103,7 +104,9 @@ def _camera_xml(name: str, T_parent_cam_cv: NDArray[np.float64], fovy_deg: float
     return f'<camera name="{name}" pos="{_f(T_parent_cam_cv[:3, 3])}" quat="{_f(quat)}" fovy="{fovy_deg:.10g}"/>'
 
 
-def _arm_xml(side: str, arm: ArmConfig, rig: RigConfig, s: SceneSettings) -> tuple[str, list[str]]:
+def _arm_xml(
+    side: str, arm: ArmConfig, rig: RigConfig, s: SceneSettings, board_mount: BoardMount | None = None
+) -> tuple[str, list[str]]:
     """The arm's body tree and its actuator lines."""
     dh = dh_params(arm.model)
     T_base = arm.base_pose.matrix()
@@ -147,15 +150,22 @@ def _arm_xml(side: str, arm: ArmConfig, rig: RigConfig, s: SceneSettings) -> tup
         f'<body name="{side}_flange" pos="{_f((a6, 0.0, d6))}" '
         f'quat="{_f((math.cos(alpha6 / 2), math.sin(alpha6 / 2), 0.0, 0.0))}" gravcomp="1">'
     )
-    lines += _gripper_xml(side, arm, rig, s, actuators)
+    lines += _gripper_xml(side, arm, rig, s, actuators, board_mount)
     lines.append("</body>")  # flange
     lines += ["</body>"] * 6
     lines.append("</body>")  # base
     return "\n".join(lines), actuators
 
 
-def _gripper_xml(side: str, arm: ArmConfig, rig: RigConfig, s: SceneSettings, actuators: list[str]) -> list[str]:
-    """Palm, two slide fingers closing along the tool y axis, the TCP site and the wrist camera."""
+def _gripper_xml(
+    side: str,
+    arm: ArmConfig,
+    rig: RigConfig,
+    s: SceneSettings,
+    actuators: list[str],
+    board_mount: BoardMount | None = None,
+) -> list[str]:
+    """Palm, two slide fingers closing along the tool y axis, the TCP site, the wrist camera (and a board)."""
     T_tcp = arm.tcp.matrix()
     tcp_quat = _mat_to_quat(T_tcp[:3, :3])
     lines = [f'<body name="{side}_tcp_frame" pos="{_f(T_tcp[:3, 3])}" quat="{_f(tcp_quat)}" gravcomp="1">']
@@ -191,6 +201,8 @@ def _gripper_xml(side: str, arm: ArmConfig, rig: RigConfig, s: SceneSettings, ac
     for cam_name, cam in rig.wrist_cameras.items():
         if cam.arm == side:
             lines.append(_camera_xml(cam_name, cam.pose_in_tcp.matrix(), cam.fovy_deg))
+    if board_mount is not None and board_mount.arm == side:
+        lines.append(board_mount.geom_xml())
     lines.append("</body>")
     return lines
 
@@ -250,11 +262,17 @@ def build_mjcf(
     objects: Sequence[ObjectSpec] = (),
     fixtures: Sequence[FixtureSpec] = (),
     markers: Sequence[tuple[str, tuple[float, float, float], float]] = (),
+    board_mount: BoardMount | None = None,
 ) -> str:
-    """The MJCF of the rig with a task's objects and fixtures; ``markers`` are (name, xyz, radius) spheres."""
+    """The MJCF of the rig with a task's objects and fixtures; ``markers`` are (name, xyz, radius) spheres.
+
+    ``board_mount`` adds a calibration board on one gripper; its texture must then be passed to
+    :func:`compile_scene` as ``assets=board_mount.assets()``.
+    """
     s = settings_for(rig)
     w, h = rig.image_size.width, rig.image_size.height
-    arms = [_arm_xml(side, getattr(rig.arms, side), rig, s) for side in ARM_SIDES]
+    arms = [_arm_xml(side, getattr(rig.arms, side), rig, s, board_mount) for side in ARM_SIDES]
+    asset_xml = "" if board_mount is None else f"\n  <asset>{board_mount.asset_xml()}</asset>"
     tx = TABLE_CENTRE_X
     marker_xml = [
         f'<site name="{name}" type="sphere" pos="{_f(xyz)}" size="{r:.6g}" rgba="1 0 1 1"/>' for name, xyz, r in markers
@@ -267,7 +285,7 @@ def build_mjcf(
     <global offwidth="{max(w, 640)}" offheight="{max(h, 480)}"/>
     <quality shadowsize="1024"/>
     <headlight ambient="0.35 0.35 0.35" diffuse="0.35 0.35 0.35" specular="0.05 0.05 0.05"/>
-  </visual>
+  </visual>{asset_xml}
   <default>
     <default class="visual"><geom contype="0" conaffinity="0"/></default>
     <geom solref="0.004 1" solimp="0.95 0.99 0.001"/>
@@ -298,9 +316,14 @@ def build_mjcf(
 """
 
 
-def compile_scene(xml: str, what: str = "simulated rig scene") -> Any:
-    """Compile MJCF text into an ``MjModel``; a compile error names ``what`` was being built."""
+def compile_scene(xml: str, what: str = "simulated rig scene", assets: Mapping[str, bytes] | None = None) -> Any:
+    """Compile MJCF text into an ``MjModel``; a compile error names ``what`` was being built.
+
+    ``assets`` maps file names used in the MJCF (e.g. a board texture) to their bytes.
+    """
     try:
+        if assets:
+            return mujoco.MjModel.from_xml_string(xml, assets=dict(assets))
         return mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:
         raise ValueError(f"{what} does not compile: {exc}") from exc

@@ -1,17 +1,29 @@
-"""``pilworld calibrate board|intrinsics``: print a ChArUco board; calibrate a camera's intrinsics from images.
+"""``pilworld calibrate board|intrinsics|handeye|check``: print a board; calibrate the head camera; check it.
 
 ``board`` writes a PNG (at ``--dpi``) and a true-scale vector PDF of a ``configs/board/*.yaml`` board.
 ``intrinsics`` detects the board in every image of a folder (correcting a legacy-pattern mismatch with a
 warning), calibrates, prints per-view errors, parameter σ and 95 % intervals, image coverage and the
 held-out error, and writes a ``pilworld.camera_model/v1`` YAML (``T_cam_base`` is the identity until the
-hand-eye calibration fills it in). Live capture (``--camera SOURCE``), ``handeye`` and ``check`` are not
-implemented yet (issue #9).
+hand-eye calibration fills it in).
+
+``handeye`` calibrates ``T_cam_base`` (eye-to-hand, the board held by a gripper) from a recorded folder
+(``--from DIR``: ``NNN.png`` + ``poses.json``) or, without one, on the simulated rig (pose planner, robot
+moves, renders at ``--resolution``; ``--save DIR`` keeps the folder). It writes the camera model YAML that
+a rig's ``head_camera.file`` points at, and a JSON report beside it (per-arm residuals, rotation span,
+closed-form and OpenCV cross-checks, the two arms' disagreement, and for a simulated rig the true errors).
+Degenerate motion exits with ``pilworld: error: hand-eye: degenerate motion: <arm>: <cause>``.
+
+``check`` projects the FK gripper points (and, with the hand-eye report, the board corners) on held-out
+views (``--images DIR`` or new simulated poses), prints the pixel error per arm and writes overlays.
+See docs/calibration.md. Live capture from a real camera (``--camera SOURCE``) is not implemented yet.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
+import time
 import warnings
 from pathlib import Path
 from typing import Any
@@ -20,15 +32,20 @@ import cv2
 import numpy as np
 
 from calib.board import ChArUcoBoard
+from calib.camera_model import CameraModel
 from calib.detect import BoardDetector, Detection
+from calib.handeye import DegenerateMotionError
 from calib.intrinsics import IntrinsicsOptions, IntrinsicsResult, calibrate_intrinsics
 from calib.pdf import page_size_points
+from pilworld.config.rig import RigConfig
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
 def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser("calibrate", help="camera calibration: board, intrinsics")
+    p: argparse.ArgumentParser = sub.add_parser(
+        "calibrate", help="camera calibration: board, intrinsics, handeye, check"
+    )
     cmds = p.add_subparsers(dest="calibrate_command", metavar="COMMAND")
     cmds.required = True
 
@@ -52,6 +69,42 @@ def register(sub: Any) -> None:
     i.add_argument("--no-outlier-rejection", action="store_true", help="keep every view")
     i.add_argument("--json", action="store_true", help="print the full report as one JSON object on the last line")
     i.set_defaults(handler=_intrinsics)
+
+    h = cmds.add_parser("handeye", help="eye-to-hand T_cam_base of the head camera, board held by a gripper")
+    h.add_argument("--rig", type=Path, required=True, help="rig config, e.g. configs/rig/sim_dual_ur5e.yaml")
+    h.add_argument("--arm", choices=("left", "right", "both"), default="left", help="arm holding the board")
+    h.add_argument("--out", type=Path, required=True, help="camera model YAML to write (head_camera.file)")
+    h.add_argument("--report", type=Path, help="JSON report to write (default: --out with suffix .json)")
+    h.add_argument(
+        "--from", dest="from_dir", type=Path, help="recorded folder (NNN.png + poses.json); default: the simulated rig"
+    )
+    h.add_argument(
+        "--camera-model", type=Path, help="intrinsics YAML at the image resolution (default: the folder's camera.yaml)"
+    )
+    h.add_argument("--board", type=Path, help="board config (default: the folder's, or configs/board/charuco_7x5_a4)")
+    h.add_argument("--save", type=Path, help="simulated rig: save the collected views to this folder")
+    h.add_argument("--poses", type=int, default=20, help="simulated rig: board poses per arm (default 20)")
+    h.add_argument("--seed", type=int, default=0, help="simulated rig: pose planner seed (default 0)")
+    h.add_argument("--resolution", type=int, default=1024, help="simulated rig: image width (default 1024)")
+    h.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
+    h.set_defaults(handler=_handeye)
+
+    c = cmds.add_parser("check", help="FK-projected gripper points on held-out views: pixel error per arm")
+    c.add_argument("--rig", type=Path, required=True, help="rig config")
+    c.add_argument(
+        "--camera-model", type=Path, help="calibrated camera YAML (default: the rig's head_camera.file or design)"
+    )
+    c.add_argument(
+        "--handeye-report", type=Path, help="hand-eye JSON report for the board check (default: beside the model)"
+    )
+    c.add_argument("--images", type=Path, help="recorded folder (NNN.png + poses.json); default: the simulated rig")
+    c.add_argument("--arm", choices=("left", "right", "both"), default="both", help="simulated rig: arms to move")
+    c.add_argument("--poses", type=int, default=6, help="simulated rig: held-out poses per arm (default 6)")
+    c.add_argument("--seed", type=int, default=1, help="simulated rig: planner seed (default 1, not handeye's 0)")
+    c.add_argument("--out", type=Path, help="folder for overlay PNGs and check.json")
+    c.add_argument("--max-px", type=float, help="exit 1 if an error (gripper max or board RMS at rig size) exceeds it")
+    c.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    c.set_defaults(handler=_check)
 
 
 def _board(args: argparse.Namespace) -> int:
@@ -139,4 +192,190 @@ def _intrinsics(args: argparse.Namespace) -> int:
     print(f"wrote {args.out}")
     if args.json:
         print(json.dumps({"out": str(args.out), "warnings": messages, **result.to_dict()}))
+    return 0
+
+
+# ---------------------------------------------------------------------- handeye
+
+
+def _handeye(args: argparse.Namespace) -> int:
+    # Imported here: the simulator (MuJoCo, GL) is only needed by these two commands.
+    from pilworld.calibration.recording import Recording
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, held_out_states, record_sim, truth_errors
+    from pilworld.calibration.solve import solve_recording
+
+    start = time.perf_counter()
+    rig = RigConfig.load(args.rig)
+    arms = arms_for(args.arm)
+    board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
+    if args.from_dir is not None:
+        recording = Recording.load(args.from_dir)
+        source = str(args.from_dir)
+        print(f"{len(recording.views)} recorded views in {args.from_dir}")
+    else:
+        if args.poses < 1:
+            raise ValueError(f"--poses: expected a number of board poses >= 1, got {args.poses}")
+        print(f"collecting board views on the simulated rig {rig.name!r} ({args.resolution} px wide)")
+        try:
+            recording = record_sim(
+                rig,
+                args.arm,
+                board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
+                poses=args.poses,
+                seed=args.seed,
+                resolution=args.resolution,
+                log=print,
+            )
+        except DegenerateMotionError as exc:
+            raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
+        source = "simulated rig"
+        if args.save is not None:
+            print(f"saved the views to {recording.save(args.save).parent}")
+    board = board or recording.board
+    missing = [a for a in arms if not recording.for_arm(a)]
+    if missing:
+        raise ValueError(f"--arm {args.arm}: the recording has no views with the {' or '.join(missing)} arm")
+    if args.camera_model is not None:
+        camera = CameraModel.from_yaml(args.camera_model)
+    elif recording.camera is not None:
+        camera = recording.camera
+    else:
+        raise ValueError(
+            f"--camera-model: needed, since {args.from_dir} has no camera.yaml (calibrate the intrinsics at the "
+            "resolution of the images with `pilworld calibrate intrinsics` first)"
+        )
+    try:
+        outcome = solve_recording(recording.views, camera, board, rig.kinematics, args.arm)
+    except DegenerateMotionError as exc:
+        raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    outcome.camera.to_yaml(args.out)
+    report: dict[str, Any] = {
+        "format": "pilworld.handeye_report/v1",
+        "rig": rig.name,
+        "arm": args.arm,
+        "source": source,
+        "camera_model": str(args.out),
+        "image_size": [camera.width, camera.height],
+        "board": board.name,
+        "poses": outcome.poses,
+        "rotation_span_deg": outcome.rotation_span_deg,
+        "residual_rms_px": outcome.residual_rms_px,
+        "arms": {a: r.to_dict() for a, r in outcome.per_arm.items()},
+        "T_cam_base": outcome.T_cam_base.tolist(),
+        "T_tcp_board": {a: T.tolist() for a, T in outcome.T_tcp_board.items()},
+    }
+    if outcome.both is not None:
+        report["combined"] = outcome.both.to_dict()
+    for name, result in outcome.per_arm.items():
+        print(_arm_line(name, result.to_dict()))
+    if outcome.both is not None:
+        b = outcome.both
+        print(
+            f"both arms: the two estimates of T_cam_base disagree by {b.disagreement_mm:.3f} mm and "
+            f"{b.disagreement_deg:.4f}°; joint refinement over both: residual RMS {b.rms_px:.3f} px"
+        )
+    if recording.truth is not None:
+        truth = truth_errors(rig, outcome, recording.truth, held_out_states(rig, arms, board, args.seed))
+        report["truth"] = truth
+        w, h = truth["gripper_image_size"]
+        print(
+            f"vs the simulator's truth: T_cam_base off by {truth['translation_err_mm']:.3f} mm and "
+            f"{truth['rotation_err_deg']:.4f}°; held-out gripper points off by max {truth['gripper_reproj_err_px']:.3f}"
+            f" px (mean {truth['gripper_reproj_mean_px']:.3f} px) at {w}x{h}"
+        )
+    report["seconds"] = time.perf_counter() - start
+    report_path = args.report if args.report is not None else args.out.with_suffix(".json")
+    report_path.parent.mkdir(parents=True, exist_ok=True)
+    report_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    print(f"wrote {args.out} and {report_path}")
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def _arm_line(name: str, d: dict[str, Any]) -> str:
+    closed = ", ".join(f"{m} {v['rms_px']:.3f} px" for m, v in d["closed_form"].items())
+    cv = d["opencv"]
+    cv_text = (
+        "OpenCV " + ", ".join(f"{m} {v['diff_mm']:.2f} mm/{v['diff_deg']:.3f}°" for m, v in cv.items())
+        if cv
+        else "OpenCV cross-check unavailable (this cv2 has no calibrateHandEye)"
+    )
+    skipped = f", {len(d['skipped'])} skipped" if d["skipped"] else ""
+    return (
+        f"{name:>5} arm: {d['poses']} poses{skipped}, rotation span {d['rotation_span_deg']:.1f}°, axis spread "
+        f"{d['axis_spread']:.2f}; closed forms {closed}; refined residual RMS {d['residual_rms_px']:.3f} px; "
+        f"{cv_text} from ours"
+    )
+
+
+# ---------------------------------------------------------------------- check
+
+
+def _check(args: argparse.Namespace) -> int:
+    from pilworld.calibration.check import check_views
+    from pilworld.calibration.recording import Recording
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, record_sim, sim_calibration_camera
+
+    rig = RigConfig.load(args.rig)
+    if args.camera_model is not None:
+        camera = CameraModel.from_yaml(args.camera_model)
+    elif rig.head_camera.file is not None:
+        camera = CameraModel.from_yaml(rig.head_camera.file)
+    else:
+        camera = sim_calibration_camera(rig, 1024)  # a designed camera: checks the pipeline, not a calibration
+    report_path = args.handeye_report
+    model_path = args.camera_model or (Path(rig.head_camera.file) if rig.head_camera.file else None)
+    if report_path is None and model_path is not None and model_path.with_suffix(".json").is_file():
+        report_path = model_path.with_suffix(".json")
+    mounts: dict[str, Any] | None = None
+    if report_path is not None:
+        doc = json.loads(Path(report_path).read_text(encoding="utf-8"))
+        mounts = {a: np.asarray(T, dtype=np.float64) for a, T in doc.get("T_tcp_board", {}).items()}
+    if args.images is not None:
+        recording = Recording.load(args.images)
+        truth = recording.truth.T_cam_base if recording.truth is not None else None
+    else:
+        if camera.dist.size and np.any(camera.dist != 0):
+            raise ValueError("--camera-model: has lens distortion, which the simulated rig cannot render; use --images")
+        if args.poses < 1:
+            raise ValueError(f"--poses: expected a number of board poses >= 1, got {args.poses}")
+        print(f"rendering {args.poses} held-out poses per arm on the simulated rig (seed {args.seed})")
+        recording = record_sim(
+            rig,
+            args.arm,
+            board=ChArUcoBoard.from_yaml(DEFAULT_BOARD),
+            poses=args.poses,
+            seed=args.seed,
+            resolution=camera.width,
+            log=print,
+        )
+        truth = rig.head_camera_model.T_cam_base
+    result = check_views(
+        recording.views, camera, rig, truth_T_cam_base=truth, board=recording.board, T_tcp_board=mounts
+    )
+    checked = result.to_dict()
+    summary: dict[str, Any] = {"camera_model": str(model_path) if model_path else None, "views": len(recording.views)}
+    summary |= checked
+    for line in result.lines():
+        print(line)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        for name, image in result.overlays.items():
+            cv2.imwrite(str(args.out / f"check_{Path(name).stem}.png"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+        (args.out / "check.json").write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
+        print(f"wrote {len(result.overlays)} overlays and check.json to {args.out}")
+    if args.json:
+        print(json.dumps(summary))
+    if args.max_px is not None:
+        worst = [
+            v
+            for entry in checked["arms"].values()
+            for k, v in entry.items()
+            if k in ("gripper_err_max_px", "board_reproj_rms_px_at_rig_size")
+        ]
+        if any(v > args.max_px for v in worst):
+            print(f"pilworld: check failed: an error exceeds --max-px {args.max_px}", file=sys.stderr)
+            return 1
     return 0
