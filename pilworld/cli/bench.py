@@ -76,6 +76,16 @@ def register(sub: Any) -> None:
     cb.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     cb.set_defaults(handler=_calibration)
 
+    pr = benches.add_parser("paired", help="wall time per paired subtask, real and imagined branch separately")
+    pr.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    pr.add_argument("--task", default="sort_cubes", help="task (default sort_cubes)")
+    pr.add_argument("--checkpoint", default="", help="policy checkpoint (default: the rig's best)")
+    pr.add_argument("--subtasks", type=int, default=3, help="paired subtasks (default 3)")
+    pr.add_argument("--rounds", type=int, default=5, help="closed-loop rounds per subtask (default 5)")
+    pr.add_argument("--world-model", default="", help="world-model folder (default: the packaged checkpoint)")
+    pr.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    pr.set_defaults(handler=_paired)
+
     wp = benches.add_parser("world-model-presets", help="parameter counts and chunk latency of every native preset")
     wp.add_argument("--presets", default="", help="comma-separated presets (default: all)")
     wp.add_argument("--repeats", type=int, default=10, help="timed calls per preset; the median is reported")
@@ -317,4 +327,31 @@ def _world_model(args: argparse.Namespace) -> int:
     )
     if args.json:
         print(json.dumps(result))
+    return 0
+
+
+def _paired(args: argparse.Namespace) -> int:
+    from pilworld.bench.paired import bench_paired
+
+    for name in ("subtasks", "rounds"):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name}: expected at least 1, got {getattr(args, name)}")
+    r = bench_paired(
+        rig=str(args.rig),
+        task=args.task,
+        checkpoint=args.checkpoint,
+        subtasks=args.subtasks,
+        rounds=args.rounds,
+        world_model=args.world_model,
+        progress=not args.json,
+    )
+    for origin in ("real", "imagined"):
+        b = r[origin]
+        print(
+            f"paired {origin}: {b['seconds_per_subtask']['median']} s per subtask (median of {r['subtasks']}), "
+            f"policy {b['policy_ms_per_round']['median']} ms and env {b['env_ms_per_round']['median']} ms per round, "
+            f"realtime x{b['realtime_factor']}"
+        )
+    if args.json:
+        print(json.dumps(r))
     return 0
