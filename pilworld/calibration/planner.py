@@ -116,7 +116,7 @@ class PosePlan:
 
     arm: str
     poses: tuple[PlannedPose, ...]
-    motion: MotionReport  #: rotation span and axis spread of the chosen TCP poses
+    motion: MotionReport | None  #: rotation span and axis spread of the chosen TCP poses (None: not checked)
     feasible: int  #: candidates that passed every check
     sampled: int  #: candidates sampled
     rejected: dict[str, int] = field(default_factory=dict)  #: rejections by reason
@@ -129,10 +129,11 @@ class PosePlan:
         return out
 
     def summary(self) -> str:
-        return (
-            f"{self.arm} arm: {len(self.poses)} board poses chosen from {self.feasible} feasible of {self.sampled} "
-            f"sampled; rotation span {self.motion.rotation_span_deg:.1f}°, axis spread {self.motion.axis_spread:.2f}"
-        )
+        text = f"{self.arm} arm: {len(self.poses)} board poses chosen from {self.feasible} feasible"
+        text += f" of {self.sampled} sampled"
+        if self.motion is not None:
+            text += f"; rotation span {self.motion.rotation_span_deg:.1f}°, axis spread {self.motion.axis_spread:.2f}"
+        return text
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -205,6 +206,8 @@ def plan_board_poses(
     current_state: npt.ArrayLike,
     settings: PlannerSettings | None = None,
     seed: int = 0,
+    *,
+    for_calibration: bool = True,
 ) -> PosePlan:
     """Choose ``settings.poses`` reachable, visible, diverse board poses for ``arm`` (see the module docstring).
 
@@ -212,7 +215,8 @@ def plan_board_poses(
     ``T_tcp_board`` the board mount (nominal for a real rig); ``current_state`` ``(14,)`` the robot's
     state: IK seeds from this arm's joints and the other arm is assumed to hold still there. Raises
     :class:`calib.handeye.DegenerateMotionError` if the chosen poses cannot determine the hand-eye
-    transform, ``ValueError`` for bad settings or when no candidate is feasible.
+    transform, ``ValueError`` for bad settings or when no candidate is feasible. ``for_calibration=False``
+    (held-out views for a check) skips the motion test.
     """
     s = settings or PlannerSettings()
     mount = _mount(kinematics, arm)
@@ -298,10 +302,12 @@ def plan_board_poses(
         )
     chosen = _farthest_points(feasible, s.poses, s.position_weight_m)
     ordered = _visit_order([feasible[i] for i in chosen], q_start)
-    try:
-        motion = check_motion([p.T_rig_tcp for p in ordered])
-    except DegenerateMotionError as exc:
-        raise DegenerateMotionError(f"{arm} arm, planned board poses: {exc}") from None
+    motion = None
+    if for_calibration:
+        try:
+            motion = check_motion([p.T_rig_tcp for p in ordered])
+        except DegenerateMotionError as exc:
+            raise DegenerateMotionError(f"{arm} arm, planned board poses: {exc}") from None
     return PosePlan(
         arm=arm, poses=tuple(ordered), motion=motion, feasible=len(feasible), sampled=s.candidates, rejected=rejected
     )

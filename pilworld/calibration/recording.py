@@ -187,7 +187,7 @@ class Recording:
             if not isinstance(entry, Mapping) or not {"image", "arm", "state"} <= set(entry):
                 raise ValueError(f"{where}: expected a mapping with image, arm and state")
             file = root / str(entry["image"])
-            image = cv2.imread(str(file), cv2.IMREAD_COLOR)
+            image = cv2.imread(str(file), cv2.IMREAD_COLOR) if file.is_file() else None
             if image is None:
                 raise ValueError(f"{where}: cannot read image {file}")
             try:

@@ -84,12 +84,14 @@ def record_sim(
     resolution: int = 1024,
     settings: PlannerSettings | None = None,
     log: Callable[[str], None] | None = None,
+    for_calibration: bool = True,
 ) -> Recording:
     """Plan, move the simulated rig and render board views with ``arm`` (left, right or both).
 
     With both arms the board is mounted on one arm at a time (a second simulator instance), as an operator
     would move it. The recording's camera holds the true intrinsics at the calibration resolution (with an
     identity ``T_cam_base``: that is what is being calibrated) and its truth the camera pose and mounts.
+    ``for_calibration=False`` (held-out views for a check) lets the planner skip its motion test.
     """
     board = board or ChArUcoBoard.from_yaml(DEFAULT_BOARD)
     camera = sim_calibration_camera(rig, resolution)
@@ -101,7 +103,17 @@ def record_sim(
         mounts[side] = np.asarray(mount.T_tcp_board)
         with SimRobot(rig, board_mount=mount) as robot:
             state = np.asarray(robot.observe().state, dtype=np.float64)
-            plan = plan_board_poses(rig.kinematics, camera, board, mount.T_tcp_board, side, state, settings, seed)
+            plan = plan_board_poses(
+                rig.kinematics,
+                camera,
+                board,
+                mount.T_tcp_board,
+                side,
+                state,
+                settings,
+                seed,
+                for_calibration=for_calibration,
+            )
             if log is not None:
                 log(plan.summary())
 
@@ -133,6 +145,7 @@ def held_out_states(rig: RigConfig, arms: Sequence[str], board: ChArUcoBoard, se
             HOME_Q14,
             PlannerSettings(poses=poses),
             seed + HELD_OUT_SEED_OFFSET,
+            for_calibration=False,
         )
         states.append(plan.states(HOME_Q14))
     return np.concatenate(states)

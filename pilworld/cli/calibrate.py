@@ -350,6 +350,7 @@ def _check(args: argparse.Namespace) -> int:
             seed=args.seed,
             resolution=camera.width,
             log=print,
+            for_calibration=False,
         )
         truth = rig.head_camera_model.T_cam_base
     result = check_views(
