@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, calibrate, control_video, data, policy, sim, train
+from pilworld.cli import bench, calibrate, control_video, data, paired, policy, sim, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -27,6 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.register(sub)
     control_video.register(sub)
     data.register(sub)
+    paired.register(sub)
     bench.register(sub)
     policy.register(sub)
     sim.register(sub)
