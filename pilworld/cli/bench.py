@@ -218,9 +218,15 @@ def _calibration(args: argparse.Namespace) -> int:
         f">= {r['intrinsics_ci95_coverage']:.0%} of seeds"
     )
     print(
-        f"hand-eye ({r['handeye_source']}): {r['handeye_trans_err_mm']:.2f} mm, {r['handeye_rot_err_deg']:.3f}°, "
-        f"gripper reprojection {r['gripper_reproj_err_px']:.2f} px"
+        f"hand-eye ({r['handeye_source']}): {r['handeye_trans_err_mm']:.3g} mm, {r['handeye_rot_err_deg']:.3g}°, "
+        f"gripper reprojection {r['gripper_reproj_err_px']:.3g} px"
     )
+    syn = r["handeye_synthetic"]
+    if r["handeye_source"] != "synthetic":
+        print(
+            f"hand-eye (synthetic, {syn['pixel_noise_px']} px noise, {syn['poses']} poses): "
+            f"{syn['handeye_trans_err_mm']:.3g} mm, {syn['handeye_rot_err_deg']:.3g}°"
+        )
     settings = r["sweep_settings"]
     print(f"sweep: {settings['trials']} trials per point, OpenCV {r['opencv_version']} (median mm / median deg)")
     for axis, per in r["sweep"].items():
