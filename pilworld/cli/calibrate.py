@@ -97,7 +97,9 @@ def register(sub: Any) -> None:
     c.add_argument(
         "--handeye-report", type=Path, help="hand-eye JSON report for the board check (default: beside the model)"
     )
-    c.add_argument("--images", type=Path, help="recorded folder (NNN.png + poses.json); default: the simulated rig")
+    source = c.add_mutually_exclusive_group()
+    source.add_argument("--images", type=Path, help="recorded folder (NNN.png + poses.json)")
+    source.add_argument("--sim", action="store_true", help="new held-out poses on the simulated rig (the default)")
     c.add_argument("--arm", choices=("left", "right", "both"), default="both", help="simulated rig: arms to move")
     c.add_argument("--poses", type=int, default=6, help="simulated rig: held-out poses per arm (default 6)")
     c.add_argument("--seed", type=int, default=1, help="simulated rig: planner seed (default 1, not handeye's 0)")

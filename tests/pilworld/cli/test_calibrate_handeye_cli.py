@@ -106,7 +106,7 @@ def test_check_on_recorded_images_and_on_new_simulated_poses(
     assert len(list((tmp_path / "ov").glob("check_*.png"))) == 10 and (tmp_path / "ov" / "check.json").is_file()
     assert main([*base, "--images", str(out / "rec"), "--max-px", "1e-9"]) == 1  # a threshold it cannot meet
     assert "check failed" in capsys.readouterr().err
-    assert main([*base, "--arm", "right", "--poses", "2", "--out", str(tmp_path / "sim")]) == 0
+    assert main([*base, "--sim", "--arm", "right", "--poses", "2", "--out", str(tmp_path / "sim")]) == 0
     text = capsys.readouterr().out
     assert "right arm: 2 board poses chosen" in text and "right arm: gripper points vs truth" in text
     assert len(list((tmp_path / "sim").glob("check_*.png"))) == 2
