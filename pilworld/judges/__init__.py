@@ -1,0 +1,1 @@
+"""Judges: the simulator checker, the image-only success judge, the hallucination detector, people."""
