@@ -24,14 +24,16 @@ def register(sub: Any) -> None:
         "in the world model (origin imagined) and on the robot (origin real). Rerunning the same command resumes.",
     )
     r.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
-    r.add_argument("--task", required=True, help="task name (sort_cubes, stack_bowls, stack_blocks)")
+    r.add_argument(
+        "--task", required=True, help="task(s): sort_cubes, stack_bowls, stack_blocks, comma-separated, or all"
+    )
     r.add_argument(
         "--checkpoints",
         default=None,
         help="policy checkpoints, comma-separated: scripted names or openpi servers ws://host:port "
         "(default: the rig's best checkpoint)",
     )
-    r.add_argument("--subtasks", type=int, required=True, help="subtasks per checkpoint")
+    r.add_argument("--subtasks", type=int, required=True, help="subtasks per task and checkpoint")
     r.add_argument("--out", type=Path, required=True, help="run folder (created, or resumed)")
     r.add_argument("--seed", type=int, default=0, help="layout seed of the first subtasks (default 0)")
     r.add_argument("--world-model", default="", help="world-model folder (default: the packaged checkpoint)")
@@ -46,13 +48,10 @@ def register(sub: Any) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.paired import PairedConfig, paired_run
     from pilworld.policies.registry import default_checkpoint
     from pilworld.types import ChunkSpec
 
-    if args.task not in TASK_NAMES:
-        raise ValueError(f"--task: unknown task {args.task!r} (known: {', '.join(TASK_NAMES)})")
     ckpts = [c.strip() for c in args.checkpoints.split(",")] if args.checkpoints else [default_checkpoint()]
     if args.rounds < 1:
         raise ValueError(f"--rounds: expected at least 1, got {args.rounds}")

@@ -71,7 +71,7 @@ class PairedConfig:
     """Everything that decides a paired run's results (stored in ``paired_config.json``)."""
 
     rig: str
-    task: str
+    task: str  # one task, several comma-separated ("sort_cubes,stack_bowls") or "all"
     checkpoints: list[str]
     subtasks: int
     out: str
@@ -91,6 +91,20 @@ class PairedConfig:
             raise ValueError(f"checkpoints: listed twice: {self.checkpoints!r}")
         if self.steps is not None and self.steps < 1:
             raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
+
+    @property
+    def tasks(self) -> list[str]:
+        from hw_drivers.sim.tasks import TASK_NAMES
+
+        names = (
+            list(TASK_NAMES) if self.task.strip() == "all" else [t.strip() for t in self.task.split(",") if t.strip()]
+        )
+        unknown = [t for t in names if t not in TASK_NAMES]
+        if not names or unknown:
+            raise ValueError(f"task: unknown task(s) {unknown or [self.task]} (known: {', '.join(TASK_NAMES)}, or all)")
+        if len(set(names)) != len(names):
+            raise ValueError(f"task: listed twice: {self.task!r}")
+        return names
 
     def to_json(self) -> dict[str, Any]:
         d = asdict(self)
@@ -137,15 +151,15 @@ def _check_config(root: Path, cfg: PairedConfig) -> None:
     write_json(path, want)
 
 
-def load_model(cfg: PairedConfig, rig: RigConfig) -> tuple[WorldModel, str | None]:
-    """The world model (with the task's adapter under ``adapter="auto"``), checked against the rig."""
+def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel, str | None]:
+    """The world model for ``task`` (its adapter under ``adapter="auto"``), checked against the rig."""
     from pilworld.world_model import DEFAULT_CHECKPOINT
     from pilworld.world_model.checkpoint import adapter_names, load_world_model
 
     path = Path(cfg.world_model) if cfg.world_model else Path(DEFAULT_CHECKPOINT)
     names = adapter_names(path)
     if cfg.adapter == "auto":
-        adapter = cfg.task if cfg.task in names else None
+        adapter = task if task in names else None
     elif cfg.adapter == "none":
         adapter = None
     else:
@@ -205,11 +219,14 @@ def paired_run(
     root = Path(cfg.out)
     rig = RigConfig.load(cfg.rig)
     _require_sim(rig)
-    task = make_task(cfg.task)
-    model, adapter = load_model(cfg, rig)
+    tasks = cfg.tasks  # validates the names
+    models = {t: load_model(cfg, rig, t) for t in tasks}  # fails before anything is written
     store_spec = dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)
     _check_config(root, cfg)
-    plan = plan_subtasks(cfg.task, cfg.subtasks, cfg.seed, cfg.checkpoints, task.num_subtasks, task.instruction)
+    plan: list[PairedSubtask] = []
+    for t in tasks:
+        spec_t = make_task(t)
+        plan += plan_subtasks(t, cfg.subtasks, cfg.seed, cfg.checkpoints, spec_t.num_subtasks, spec_t.instruction)
     done = stored_branches(root)
     todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS)]
     gamma = ControlVideo.from_rig(rig, cfg.spec)
@@ -219,15 +236,18 @@ def paired_run(
     bar = tqdm(
         total=len(plan), initial=len(plan) - len(todo), desc="paired subtasks", unit="pair", disable=not progress
     )
-    with _robot(cfg.rig, cfg.task) as robot, EpisodeWriter(root, store_spec) as writer:
+    with _robot(cfg.rig, tasks[0]) as robot, EpisodeWriter(root, store_spec) as writer:
         for pair in todo:
             have = done.get(pair.pair_id, set())
             sub = pair.subtask
-            start = robot.reset(seed=sub.seed, subtask=sub.index, history=cfg.spec.history, stride=cfg.spec.stride)
+            model, adapter = models[sub.task]
+            start = robot.reset(
+                seed=sub.seed, subtask=sub.index, task=sub.task, history=cfg.spec.history, stride=cfg.spec.stride
+            )
             policy = policies[pair.checkpoint]
             extra = {
                 "pair": pair.pair_id,
-                "sim_task": cfg.task,
+                "sim_task": sub.task,
                 "adapter": adapter or "",
                 "world_model": cfg.world_model or "packaged",
             }
@@ -245,9 +265,8 @@ def paired_run(
                 index = writer.append(rollout_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra))
                 if origin == "real":
                     check = robot.check_subtask(sub.index)
-                    record_outcomes(
-                        root, [Outcome(index, JUDGE_ID, "sim_state", check.success, rollout_length(rollout))]
-                    )
+                    outcome = Outcome(index, JUDGE_ID, "sim_state", check.success, rollout_length(rollout))
+                    record_outcomes(root, [outcome])
                 rec = _branch_record(pair, rollout)
                 records.append(rec)
                 with (root / TIMINGS_FILE).open("a") as fh:

@@ -160,3 +160,18 @@ def test_a_policy_served_over_openpi_gives_the_local_result(tmp_path: Path) -> N
         np.testing.assert_array_equal(ea.action, eb.action)
         for v in ea.images:
             np.testing.assert_array_equal(ea.images[v], eb.images[v])
+
+
+def test_several_tasks_in_one_run(tmp_path: Path) -> None:
+    out = tmp_path / "multi"
+    summary = paired_run(
+        _cfg(out, task="stack_blocks,sort_cubes", subtasks=1, spec=ChunkSpec(rounds=1)), progress=False
+    )
+    assert summary["pairs_planned"] == 2
+    eps = EpisodeStore(out).episodes
+    tasks = [json.loads(e["extra"])["sim_task"] for e in eps]
+    assert tasks == ["stack_blocks", "stack_blocks", "sort_cubes", "sort_cubes"]
+    adapters = {json.loads(e["extra"])["adapter"] for e in eps}
+    assert adapters == {"stack_blocks", "sort_cubes"}  # each task's own stage-2 adapter
+    with pytest.raises(ValueError, match="unknown task"):
+        paired_run(_cfg(tmp_path / "bad", task="sort_cubes,juggle"), progress=False)
