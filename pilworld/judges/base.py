@@ -19,9 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
+from tqdm import tqdm
+
 from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
-from pilworld.data.outcomes import JudgeKind, Outcome, record_outcomes
+from pilworld.data.outcomes import JudgeKind, Outcome, read_outcomes, record_outcomes
 from pilworld.data.reader import EpisodeStore
 
 
@@ -75,12 +77,13 @@ def judge_dataset(
     rig: RigConfig,
     *,
     episodes: Iterable[int] | None = None,
+    progress: bool = False,
 ) -> list[Outcome]:
     """Run ``judges`` on the episodes of ``root`` (all by default) and record their verdicts."""
     store = EpisodeStore(root)
     indices = list(range(store.num_episodes)) if episodes is None else list(episodes)
     outcomes: list[Outcome] = []
-    for i in indices:
+    for i in tqdm(indices, desc="judging", unit="episode", disable=not progress):
         ep = store.load(i)
         ctx = JudgeContext(rig=rig, task=episode_task(ep))
         for j in judges:
@@ -102,3 +105,9 @@ def judge_dataset(
     if outcomes:
         record_outcomes(root, outcomes, num_episodes=store.num_episodes)
     return outcomes
+
+
+def unjudged_episodes(root: str | Path, judge_id: str) -> list[int]:
+    """Episodes of ``root`` without a verdict of ``judge_id`` (what a resumed judging pass still has to do)."""
+    have = {o.episode_index for o in read_outcomes(root) if o.judge_id == judge_id}
+    return [i for i in range(EpisodeStore(root).num_episodes) if i not in have]
