@@ -8,6 +8,10 @@ the shared start), and the policy-side state becomes the last stride-aligned act
 absolute joint commands the imagined robot is assumed to reach.
 
 Frame times advance by Δ control periods per frame, as the real branch's do.
+
+With ``safety`` the chunk first goes through the same safety filter as on the robot (joint limits and
+speed, from the start state on), so the world model is conditioned on the commands the robot would
+really execute, not on a jump the robot would have slowed down.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from numpy.typing import NDArray
 
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs.base import EnvError, as_chunk
+from pilworld.envs.robot import LimitFilter
 from pilworld.types import ActionChunk, ChunkSpec, Observation, Segment, Start
 from pilworld.world_model.base import PredictRequest, WorldModel
 
@@ -69,8 +74,10 @@ class ImaginedEnv:
         control_rate_hz: float = 30.0,
         seed: int = 0,
         steps: int | None = None,
+        safety: LimitFilter | None = None,
     ) -> None:
         self.model = model
+        self.safety = safety
         self.gamma = control_video
         self._spec = spec or control_video.spec
         info = model.info
@@ -114,6 +121,8 @@ class ImaginedEnv:
                     "(set the rig's image_size to the model's)"
                 )
         self.memory.reset(start.history, obs)
+        if self.safety is not None:
+            self.safety.reset(obs.state)
         self._obs = obs
         self._instruction = start.subtask.instruction  # conditions the world model
         self._round = 0
@@ -124,7 +133,10 @@ class ImaginedEnv:
             raise EnvError("step() before reset(): call reset(start) first")
         spec = self._spec
         c = as_chunk(chunk, spec, int(self._obs.state.shape[0]))
-        stride_actions = c.stride_aligned(spec)
+        executed = c.executed(spec)
+        if self.safety is not None:
+            executed = np.stack([self.safety(a) for a in executed])
+        stride_actions = executed[spec.stride_indices()]
         control = self.gamma.render_stride_aligned(stride_actions[None].astype(np.float64), self._obs.state[None])[0]
         history, valid = self.memory.arrays()
         request = PredictRequest.build(
@@ -152,7 +164,7 @@ class ImaginedEnv:
         self.memory.push(dict(self._obs.images))
         for o in observations[:-1]:
             self.memory.push(dict(o.images))
-        segment = Segment(observations=observations, actions=c.executed(spec), stride=spec.stride)
+        segment = Segment(observations=observations, actions=executed, stride=spec.stride)
         self._obs = segment.last
         self._round += 1
         return segment

@@ -6,10 +6,12 @@ branch are the world model's single-step prediction for those actions, and frame
 branch are what happened (paper appendix "Single-step LPIPS": K future frames compared with the real
 frames at stride Δ; here with the policy's actions rather than a recorded demonstration's).
 
-The premise is checked, not assumed: the stored stride-aligned actions of round 0 (rows 0..K−1; row
-K already belongs to round 1 or repeats the last command) must agree within ``action_atol``. The real
-branch stores what the robot was *sent* after the safety filter, so a round whose chunk the filter
-slowed down differs from what the world model was conditioned on; such pairs are skipped and listed.
+The premise is checked, not assumed. Paired runs store a digest of each branch's first policy chunk
+(``extra.chunk0``): the pair is used when the digests are equal (the same chunk went to the robot and to
+the world model, both through the same safety filter; the robot's own final clamp can still differ by
+its tracking lag, reported as ``max_abs_action_diff``). Without digests (older runs) the stored
+stride-aligned actions of round 0 (rows 0..K−1) must agree within ``action_atol``. Unusable pairs are
+skipped and listed.
 
 Scores come from :mod:`pilworld.world_model.metrics` (PSNR, SSIM, the pooled PSNR = PSNR of the mean
 MSE, the fraction of bit-exact frames, LPIPS when its weights are on disk), per view and per future
@@ -19,6 +21,7 @@ frame index 1..K, with the frozen baseline (the start frame copied K times) besi
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -36,7 +39,7 @@ DEFAULT_ACTION_ATOL = 1e-5  # rad; float32 storage round-trips exactly, so this 
 
 PROTOCOL = (
     "frames 1..K of round 0, imagined vs real, from the shared start frame and the same policy chunk; "
-    "pairs whose stored round-0 actions differ are skipped"
+    "pairs whose first policy chunks differ are skipped"
 )
 
 
@@ -58,12 +61,22 @@ def _clip(frames: dict[str, NDArray[np.uint8]], views: Sequence[str]) -> torch.T
     return torch.from_numpy(np.ascontiguousarray(stacked.transpose(0, 1, 4, 2, 3)))[None]
 
 
+def _chunk0(store: EpisodeStore, index: int) -> str | None:
+    raw = store.episodes[index].get("extra")
+    return str(json.loads(raw)["chunk0"]) if raw and "chunk0" in json.loads(raw) else None
+
+
 def _check_pair(store: EpisodeStore, pair: Pair, atol: float) -> tuple[int, dict[str, Any] | None]:
     """(K, None) when the pair is usable, else (K, the reason it is skipped)."""
     k_imag, a_imag = _round0(store, pair.imagined)
     k_real, a_real = _round0(store, pair.real)
     if k_imag != k_real or k_imag < 1:
         return k_imag, {"pair": pair.pair_id, "reason": f"round 0 has K={k_imag} imagined vs K={k_real} real frames"}
+    digests = _chunk0(store, pair.imagined), _chunk0(store, pair.real)
+    if digests[0] is not None and digests[1] is not None:
+        if digests[0] != digests[1]:
+            return k_imag, {"pair": pair.pair_id, "reason": "the first policy chunks differ (extra.chunk0)"}
+        return k_imag, None
     diff = np.abs(a_imag.astype(np.float64) - a_real.astype(np.float64)).max(axis=1)  # per frame
     if float(diff.max()) > atol:
         return k_imag, {

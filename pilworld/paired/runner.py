@@ -19,6 +19,7 @@ between runs).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from collections.abc import Callable, Sequence
@@ -35,7 +36,7 @@ from pilworld.data.atomic import write_json
 from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
-from pilworld.envs import ImaginedEnv, RobotEnv
+from pilworld.envs import ImaginedEnv, LimitFilter, RobotEnv
 from pilworld.paired.episodes import rollout_episode
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
@@ -257,12 +258,22 @@ def paired_run(
                 policy.reset(seed=pair.seed)
                 if origin == "imagined":
                     env: ImaginedEnv | RobotEnv = ImaginedEnv(
-                        model, gamma, cfg.spec, control_rate_hz=rig.control_rate_hz, seed=pair.seed, steps=cfg.steps
+                        model,
+                        gamma,
+                        cfg.spec,
+                        control_rate_hz=rig.control_rate_hz,
+                        seed=pair.seed,
+                        steps=cfg.steps,
+                        safety=LimitFilter(robot.spec),  # the robot's filter: same commands in both branches
                     )
                 else:
                     env = RobotEnv(robot, cfg.spec, pace=False)  # the simulator runs faster than real time
                 rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
-                index = writer.append(rollout_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra))
+                # The first policy chunk's digest: equal in both branches (same start, policy and seed), which
+                # is the premise of comparing their first rounds frame by frame (pilworld.metrics.single_step).
+                ep_extra = {**extra, "chunk0": hashlib.sha256(rollout.chunks[0].tobytes()).hexdigest()[:16]}
+                ep = rollout_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=ep_extra)
+                index = writer.append(ep)
                 if origin == "real":
                     check = robot.check_subtask(sub.index)
                     outcome = Outcome(index, JUDGE_ID, "sim_state", check.success, rollout_length(rollout))
