@@ -166,3 +166,26 @@ def test_frozen_model_reproduces_the_start(gamma: ControlVideo) -> None:
     seg = env.step(_chunk())
     for o in seg.observations:
         np.testing.assert_array_equal(o.images["cam_high"], start.observation.images["cam_high"])
+
+
+def test_safety_filter_shapes_the_commands_like_on_the_robot(gamma: ControlVideo) -> None:
+    """A chunk that jumps is slowed down by the robot's filter; the imagined branch executes the same commands."""
+    from hw_drivers.sim.robot import SimRobot
+    from pilworld.envs import LimitFilter
+
+    with SimRobot(SIM, "sort_cubes") as robot:
+        spec = robot.spec
+    model = SpyModel()
+    env = ImaginedEnv(model, gamma, SPEC, safety=LimitFilter(spec))
+    start = _start()
+    env.reset(start)
+    jump = np.tile(start.observation.state + np.float32(0.5), (SPEC.horizon, 1))
+    jump[:, [6, 13]] = 1.0
+    seg = env.step(jump)
+    reference = LimitFilter(spec)
+    reference.reset(start.observation.state)
+    expected = np.stack([reference(a) for a in jump[: SPEC.executed_steps]])
+    np.testing.assert_array_equal(seg.actions, expected)
+    assert not np.allclose(seg.actions[0], jump[0])  # the first step was slowed down
+    np.testing.assert_array_equal(model.requests[0].actions, expected[SPEC.stride_indices()])
+    np.testing.assert_array_equal(seg.observations[-1].state, expected[-1])
