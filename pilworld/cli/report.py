@@ -1,0 +1,43 @@
+"""``pilworld report RUN_DIR``: a paired run as one self-contained ``report.html`` (see docs/report.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "report",
+        help="write a self-contained report.html of a paired run (videos, verdicts, metrics, charts)",
+        description="Write RUN_DIR/report.html: per pair the real and imagined videos of every view and the "
+        "control video side by side, verdicts per judge and the first hallucination frame; the metrics of "
+        "metrics.json, the real-vs-imagined success scatter and per-frame error curves. One file that opens "
+        "offline (media embedded as data: URIs).",
+    )
+    p.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="paired run folder (pilworld paired run --out)")
+    p.add_argument("--out", type=Path, default=None, help="report file (default RUN_DIR/report.html)")
+    p.add_argument(
+        "--max-pairs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="embed videos of the first N pairs only (default all); the others are listed without video",
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+    p.set_defaults(handler=_report)
+
+
+def _report(args: argparse.Namespace) -> int:
+    from pilworld.report import build_report, report_stats
+
+    if args.max_pairs is not None and args.max_pairs < 0:
+        raise ValueError(f"--max-pairs: expected an integer >= 0, got {args.max_pairs}")
+    path = build_report(args.run_dir, args.out, max_pairs=args.max_pairs)
+    stats = report_stats(path)
+    print(f"report: {path} ({stats['bytes'] / 1e6:.2f} MB, {stats['videos']} videos)")
+    if args.json:
+        print(json.dumps(stats))
+    return 0
