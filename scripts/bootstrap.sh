@@ -47,6 +47,10 @@ if ! ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1'; then
   fi
 fi
 
+# Headless Chromium for the report's browser test (and the judge UI): Debian's package, installed when
+# we can (root + apt); otherwise the browser tests skip with a reason. Idempotent and quick when present.
+bash "$ROOT/scripts/install-chromium.sh" || log "warning: Chromium could not be installed; browser tests will skip"
+
 stamp="$VENV/.pilworld-install"
 want="$(cat "$ROOT/pyproject.toml" | sha256sum | cut -d' ' -f1) $ROOT"
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
