@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, calibrate, control_video, data, paired, policy, sim, train
+from pilworld.cli import bench, calibrate, control_video, data, demo, paired, policy, report, sim, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -26,10 +26,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     calibrate.register(sub)
     control_video.register(sub)
+    demo.register(sub)
     data.register(sub)
     paired.register(sub)
     bench.register(sub)
     policy.register(sub)
+    report.register(sub)
     sim.register(sub)
     train.register(sub)
     return parser

@@ -1,0 +1,196 @@
+"""``pilworld bench hallucination``: the hallucination detector on real-branch episodes with injected faults.
+
+For every clean real-branch episode of a dataset (or a seeded sample) the detector judges the episode
+itself — any flag is a false positive — and one faulted copy per fault type of
+:mod:`pilworld.judges.faults`, each at a frame ``k`` drawn from the middle half of the episode (seeded;
+if the fault cannot be applied there, up to ``attempts`` other frames are tried, then the case is
+counted as skipped). A faulted copy counts as
+
+* ``detected`` when the first hallucination frame is within ``k ± 1``;
+* ``early`` when it is before ``k - 1`` (the clean part was flagged), ``late`` after ``k + 1``;
+* ``missed`` when nothing was found.
+
+Reported per fault type and overall: counts, the detection rate, the categories the detector named,
+the false-positive rate on the clean episodes with their categories, seconds per judged episode, and
+the first cases that were not detected (to look at).
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pilworld.config.rig import RigConfig
+from pilworld.data.episode import Episode
+from pilworld.data.reader import EpisodeStore
+from pilworld.judges.base import JudgeContext, episode_task
+from pilworld.judges.faults import FAULTS, FaultError, inject
+from pilworld.judges.hallucination import HallucinationDetector
+from pilworld.judges.hallucination_checks import Thresholds
+
+DETECTION_TARGET = 0.90  # issue #7: frame k ± 1 found in at least 90 % of faulted episodes
+FALSE_POSITIVE_LIMIT = 0.10  # ... and at most 10 % of clean episodes flagged
+
+
+def _category(reason: str) -> str:
+    return reason.split(":", 1)[0]
+
+
+def draw_k(length: int, rng: np.random.Generator) -> int:
+    """A fault frame in the middle half of an episode of ``length`` frames."""
+    lo, hi = max(1, length // 4), max(2, (3 * length) // 4)
+    return int(rng.integers(lo, hi + 1)) if hi < length else int(rng.integers(lo, length))
+
+
+def inject_random(
+    fault: str, ep: Episode, rig: RigConfig, rng: np.random.Generator, *, attempts: int = 8
+) -> tuple[Episode, int] | None:
+    """``fault`` injected at a frame drawn by :func:`draw_k` (up to ``attempts`` frames tried), or None."""
+    for _ in range(attempts):
+        k = draw_k(ep.length, rng)
+        try:
+            return inject(fault, ep, k, rig, rng), k
+        except FaultError:
+            continue
+    return None
+
+
+def run_hallucination_bench(
+    dataset_root: str | Path,
+    rig: RigConfig | str | Path,
+    *,
+    seed: int = 0,
+    per_fault: int | None = None,
+    faults: tuple[str, ...] = FAULTS,
+    attempts: int = 8,
+    thresholds: Thresholds | None = None,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """Detection within ``k ± 1`` per fault type and false positives on clean episodes (see the module doc).
+
+    ``per_fault``: how many clean episodes to use (each judged clean and once per fault); None = every
+    real-branch episode of ``dataset_root``. Episodes are drawn in a seeded random order.
+    """
+    from pilworld.bench.common import machine_info
+
+    unknown = [f for f in faults if f not in FAULTS]
+    if unknown or not faults:
+        raise ValueError(f"faults: expected a non-empty subset of {list(FAULTS)}, got {list(faults)}")
+    if per_fault is not None and (isinstance(per_fault, bool) or not isinstance(per_fault, int) or per_fault < 1):
+        raise ValueError(f"per_fault: expected None or an integer >= 1, got {per_fault!r}")
+    rig_cfg = rig if isinstance(rig, RigConfig) else RigConfig.load(rig)
+    store = EpisodeStore(dataset_root)
+    real = [i for i, row in enumerate(store.episodes) if _origin(store, i, row) == "real"]
+    if not real:
+        raise ValueError(f"dataset_root: {dataset_root} has no real-branch episodes")
+    rng = np.random.default_rng(seed)
+    order = [real[i] for i in rng.permutation(len(real))]
+    chosen = order if per_fault is None else order[:per_fault]
+    detector = HallucinationDetector(thresholds or Thresholds())
+
+    clean_flags: Counter[str] = Counter()
+    clean_cases: list[dict[str, Any]] = []
+    per: dict[str, dict[str, Any]] = {
+        f: {"n": 0, "detected": 0, "early": 0, "late": 0, "missed": 0, "skipped": 0, "categories": Counter()}
+        for f in faults
+    }
+    misses: list[dict[str, Any]] = []
+    judge_seconds: list[float] = []
+    iterator: Any = chosen
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(chosen, desc="hallucination bench", unit="episode")
+    for index in iterator:
+        ep = store.load(index)
+        ctx = JudgeContext(rig=rig_cfg, task=episode_task(ep))
+        t0 = time.perf_counter()
+        verdict = detector.judge(ep, ctx)
+        judge_seconds.append(time.perf_counter() - t0)
+        if verdict.first_hallucination_frame is not None:
+            clean_flags[_category(verdict.reason)] += 1
+            clean_cases.append({"episode": index, "frame": verdict.first_hallucination_frame, "reason": verdict.reason})
+        for fault in faults:
+            stats = per[fault]
+            case = inject_random(fault, ep, rig_cfg, rng, attempts=attempts)
+            if case is None:
+                stats["skipped"] += 1
+                continue
+            faulted, k = case
+            t0 = time.perf_counter()
+            v = detector.judge(faulted, ctx)
+            judge_seconds.append(time.perf_counter() - t0)
+            stats["n"] += 1
+            f = v.first_hallucination_frame
+            if f is None:
+                outcome = "missed"
+            elif abs(f - k) <= 1:
+                outcome = "detected"
+                stats["categories"][_category(v.reason)] += 1
+            else:
+                outcome = "early" if f < k else "late"
+            stats[outcome] += 1
+            if outcome != "detected":
+                misses.append(
+                    {
+                        "episode": index,
+                        "fault": faulted.extra["fault"],
+                        "frame": f,
+                        "outcome": outcome,
+                        "reason": v.reason,
+                    }
+                )
+
+    faults_out: dict[str, Any] = {}
+    total_n = total_detected = 0
+    for fault, stats in per.items():
+        n = int(stats["n"])
+        total_n += n
+        total_detected += int(stats["detected"])
+        faults_out[fault] = {
+            **{key: int(stats[key]) for key in ("n", "detected", "early", "late", "missed", "skipped")},
+            "detection_rate": stats["detected"] / n if n else None,
+            "categories": dict(stats["categories"]),
+        }
+    n_clean = len(chosen)
+    fp_rate = len(clean_cases) / n_clean
+    detection = total_detected / total_n if total_n else 0.0
+    worst = min((v["detection_rate"] for v in faults_out.values() if v["detection_rate"] is not None), default=0.0)
+    return {
+        "dataset": str(dataset_root),
+        "seed": seed,
+        "episodes": n_clean,
+        "clean": {
+            "n": n_clean,
+            "flagged": len(clean_cases),
+            "false_positive_rate": fp_rate,
+            "categories": dict(clean_flags),
+            "cases": clean_cases,
+        },
+        "faults": faults_out,
+        "overall": {"n": total_n, "detected": total_detected, "detection_rate": detection},
+        "acceptance": {
+            "detection_target": DETECTION_TARGET,
+            "false_positive_limit": FALSE_POSITIVE_LIMIT,
+            "overall_detection_ok": detection >= DETECTION_TARGET,
+            "every_fault_detection_ok": worst >= DETECTION_TARGET,
+            "false_positive_ok": fp_rate <= FALSE_POSITIVE_LIMIT,
+        },
+        "seconds_per_episode": float(np.mean(judge_seconds)) if judge_seconds else None,
+        "not_detected": misses,
+        "machine": machine_info(),
+    }
+
+
+def _origin(store: EpisodeStore, index: int, row: dict[str, Any]) -> str:
+    """An episode's branch; the per-frame column is the source of truth, the episodes table may lack it."""
+    if row.get("origin"):
+        return str(row["origin"])
+    table = store.frame_table(index)
+    if "origin" in table.column_names and table.num_rows:
+        return str(table.column("origin")[0].as_py())
+    return "real"

@@ -1,0 +1,125 @@
+"""The automatic hallucination detector (issue #7): the first frame of an obvious hallucination, and why.
+
+The paper's annotators mark the first frame of "object disappearance or sudden appearance, cross-view
+spatial conflict, discontinuous arm or object motion" (appendix, "Hallucination-free ratio"). This
+judge looks for each of those with its own check (``hallucination_checks.py``) and reports the
+earliest; ties go to the category listed first in :data:`CATEGORIES`:
+
+* **cross-view conflict** — a view stops being the camera it is: the head view's static background
+  changes all at once, or a wrist view stops showing its own gripper, or the head view starts to;
+* **discontinuous arm motion** — the head view does not show an arm where the state's forward
+  kinematics projects it (or shows one where none is), e.g. a gripper far from its FK projection;
+* **object disappearing / appearing / discontinuous object motion** — an object's colour blob
+  vanishes, appears (out of nothing, or as a duplicate) or jumps, and no arm explains it: not
+  hidden behind or revealed from behind an arm or another object, not carried by a gripper (the
+  blob, moved with the gripper's projected TCP, is hidden or seen there), not at the image border.
+
+Each unexplained change must still be there one frame later; the reported frame is where it first
+showed. It needs the state (the measured joints in the real branch, the commanded stride-aligned
+actions in the imagined one) and the rig's head camera and kinematics, and for the object checks the
+task's object colours (``pilworld.policies.scripted.knowledge``); without known colours only the arm and
+view checks run. Measured detection and false-positive rates: ``pilworld bench hallucination``
+(``pilworld/bench/hallucination.py``) and docs/judges.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from pilworld.config.rig import RigConfig
+from pilworld.data.episode import Episode
+from pilworld.data.outcomes import JudgeKind
+from pilworld.judges.base import JudgeContext, Verdict
+from pilworld.judges.hallucination_checks import (
+    CATEGORIES,
+    Finding,
+    HeadScene,
+    Thresholds,
+    check_arms,
+    check_objects,
+    check_views,
+)
+from pilworld.judges.hallucination_scene import (
+    REFERENCE_WIDTH,
+    ArmShape,
+    colourful_mask,
+    dilate,
+    learn_table,
+    object_labels,
+    predict_arms,
+    table_mask,
+    task_classes,
+)
+from pilworld.judges.hallucination_wrist import check_wrist_objects
+from pilworld.types import HEAD_VIEW
+
+__all__ = ["CATEGORIES", "HallucinationDetector", "find_hallucinations", "head_scene"]
+
+
+def head_scene(
+    episode: Episode, rig: RigConfig, task: str, thresholds: Thresholds | None = None, shape: ArmShape | None = None
+) -> HeadScene:
+    """What the checks need from the head view of ``episode`` (see ``hallucination_scene.py``)."""
+    if HEAD_VIEW not in episode.images:
+        raise ValueError(f"episode: the detector needs the head view {HEAD_VIEW!r}, got {sorted(episode.images)}")
+    images = episode.images[HEAD_VIEW]
+    cam = rig.head_camera_model
+    if images.shape[1:3] != (cam.height, cam.width):
+        raise ValueError(
+            f"episode: {HEAD_VIEW} frames are {images.shape[2]}x{images.shape[1]} but the rig's head camera is "
+            f"{cam.width}x{cam.height}"
+        )
+    classes = task_classes(task, episode.task)
+    labels = object_labels(images, classes, (thresholds or Thresholds()).faded_saturation)
+    arms = predict_arms(rig, episode.state, shape)
+    # The table's colour from the start frame (real in both branches), away from arms and objects.
+    table = learn_table(images[0], dilate(arms.whole[0], 3) | dilate(labels[0] > 0, 2))
+    return HeadScene(
+        images=images,
+        labels=labels,
+        table=table_mask(images, table),
+        arms=arms,
+        classes=classes,
+        scale=cam.width / REFERENCE_WIDTH,
+        grip=rig.kinematics.gripper_openings(episode.state),
+        colourful=colourful_mask(images),
+    )
+
+
+def find_hallucinations(
+    episode: Episode, rig: RigConfig, task: str = "", thresholds: Thresholds | None = None
+) -> list[Finding]:
+    """Every check's first finding (at most one per check), earliest first."""
+    th = thresholds or Thresholds()
+    scene = head_scene(episode, rig, task, th)
+    wrists = {v: f for v, f in episode.images.items() if v != HEAD_VIEW}
+    checks = (
+        check_views(scene, wrists, th),
+        check_arms(scene, th),
+        check_objects(scene, th),
+        check_wrist_objects(scene, wrists, rig, episode.state, th),
+    )
+    found = [f for f in checks if f is not None]
+    return sorted(found, key=lambda f: (f.frame, CATEGORIES.index(f.category)))
+
+
+@dataclass(frozen=True)
+class HallucinationDetector:
+    """Judge ``auto_hallucination``: ``Verdict(success=None, first_hallucination_frame, reason)``."""
+
+    thresholds: Thresholds = field(default_factory=Thresholds)
+
+    @property
+    def judge_id(self) -> str:
+        return "auto_hallucination"
+
+    @property
+    def kind(self) -> JudgeKind:
+        return "vision"
+
+    def judge(self, episode: Episode, context: JudgeContext) -> Verdict:
+        found = find_hallucinations(episode, context.rig, context.task, self.thresholds)
+        if not found:
+            return Verdict(success=None, first_hallucination_frame=None, reason="no hallucination found")
+        first = found[0]
+        return Verdict(success=None, first_hallucination_frame=int(first.frame), reason=first.reason)

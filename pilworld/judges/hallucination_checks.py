@@ -1,0 +1,363 @@
+"""The hallucination detector's checks, one per category of the paper's appendix; each returns a first frame.
+
+Every check compares frame ``t`` with frame ``t - 1`` (and the state of both) and asks whether what
+changed is explained by something physical: an arm moving over or away from an object, an object
+carried by a gripper, an object leaving the image. An unexplained change must still be there at
+``t + 1`` before it counts, so a single odd frame (a compression artefact, a blurred world-model frame)
+is not a hallucination; the reported frame is ``t``, where it first showed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from pilworld.judges.hallucination_scene import ArmViews, Mask, dilate, erode
+from pilworld.perception.colour import ColourClass
+
+# Categories (paper appendix, "Hallucination-free ratio"): the reason of a verdict starts with one of these.
+OBJECT_DISAPPEARED = "object disappearing"
+OBJECT_APPEARED = "object appearing"
+CROSS_VIEW = "cross-view conflict"
+ARM_MOTION = "discontinuous arm motion"
+OBJECT_MOTION = "discontinuous object motion"
+CATEGORIES: tuple[str, ...] = (CROSS_VIEW, ARM_MOTION, OBJECT_MOTION, OBJECT_DISAPPEARED, OBJECT_APPEARED)
+
+
+@dataclass(frozen=True)
+class Finding:
+    """The first frame one check saw a hallucination at, its category and what it saw."""
+
+    frame: int
+    category: str
+    detail: str
+
+    @property
+    def reason(self) -> str:
+        return f"{self.category}: {self.detail}"
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Pixel figures at 128×128 (scaled with the image width); fractions are unitless."""
+
+    faded_saturation: float = 0.22  # colour test for washed-out object pixels (see hallucination_scene.object_labels)
+    min_object_px: float = 6.0  # smaller colour blobs are ignored (noise, slivers behind a finger)
+    max_object_step_px: float = 8.0  # an object not carried moves less than this per stored frame (10 Hz)
+    covered_fraction: float = 0.8  # an object counts as hidden/revealed when this much of it is behind something
+    carried_covered_fraction: float = 0.5  # the same, for a blob moved along with a gripper (less exact)
+    hold_reach_px: float = 6.0  # a held object reaches this close to its gripper's projected TCP
+    gripper_moved_px: float = 10.0  # a gripper whose drawn silhouette changes by fewer pixels carries nothing
+    carry_reach_px: float = 3.0  # a blob this close to a gripper's silhouette may be held by it
+    arm_miss_px: float = 120.0  # predicted arm, but table seen: a region this large is a mismatch
+    arm_miss_slack_px: float = 2.0  # table pixels closer than this to anything else do not count (silhouette misfit)
+    arm_extra_px: float = 30.0  # arm-like pixels away from any predicted arm, in one region, are a mismatch
+    arm_extra_margin_px: float = 3.0  # slack around the predicted silhouette for the extra-pixels test
+    background_change: float = 0.25  # fraction of the head view's static background changing in one frame
+    wrist_signature: float = 0.5  # fraction of a wrist view's own gripper pixels that must stay dark
+    signature_dark: int = 90  # a pixel is "dark" (gripper) below this max-channel value
+    min_wrist_object_px: float = 40.0  # wrist views see objects close up; smaller blobs are edges and slivers
+    wrist_covered_fraction: float = 0.5  # as covered_fraction, where a wrist view must show an object (coarser)
+    wrist_step_px: float = 6.0  # slack around where a wrist view must show an object (plane-height error, lag)
+    closed_grip: float = 0.75  # a gripper below this opening may be holding an object (1 = 85 mm open)
+
+
+@dataclass(frozen=True, eq=False)
+class HeadScene:
+    """Everything the checks need about the head view of one episode."""
+
+    images: NDArray[np.uint8]  # (T, H, W, 3)
+    labels: NDArray[np.uint8]  # (T, H, W) 0 or 1 + object class index
+    table: NDArray[np.bool_]  # (T, H, W) table-coloured pixels
+    arms: ArmViews
+    classes: list[ColourClass]
+    scale: float  # image width / 128
+    grip: NDArray[np.float64]  # (T, 2) left and right grip openings from the state (0 closed … 1 open)
+    colourful: NDArray[np.bool_]  # (T, H, W) saturated pixels of any hue: objects, known or not, never arms
+
+    @property
+    def length(self) -> int:
+        return int(self.images.shape[0])
+
+
+def _components(mask: Mask, min_px: float) -> list[Mask]:
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    return [lab == i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_px]
+
+
+def _largest_region(mask: Mask) -> int:
+    n, _, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    return int(stats[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
+
+
+def _shift(mask: Mask, du: float, dv: float) -> Mask:
+    m = np.zeros_like(mask)
+    v, u = np.nonzero(mask)
+    v = np.round(v + dv).astype(int)
+    u = np.round(u + du).astype(int)
+    ok = (v >= 0) & (v < mask.shape[0]) & (u >= 0) & (u < mask.shape[1])
+    m[v[ok], u[ok]] = True
+    return m
+
+
+def _touches_border(mask: Mask) -> bool:
+    return bool(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+
+
+def _centre(mask: Mask) -> tuple[int, int]:
+    v, u = np.nonzero(mask)
+    return round(float(u.mean())), round(float(v.mean()))
+
+
+# ---------------------------------------------------------------------- objects
+
+
+class _ObjectFrames:
+    """Per-frame object masks and occluders of the head view, computed once per episode."""
+
+    def __init__(self, scene: HeadScene, th: Thresholds) -> None:
+        self.scene = scene
+        self.th = th
+        s = scene.scale
+        self.min_px = th.min_object_px * s * s
+        self.step = th.max_object_step_px * s
+        self.reach = th.carry_reach_px * s
+        T = scene.length
+        self.grip = [[dilate(scene.arms.distal[a, t], self.reach) for t in range(T)] for a in range(2)]
+        whole = scene.arms.whole
+        self.arm_zone = [
+            dilate(whole[max(t - 1, 0)] | whole[t] | whole[min(t + 1, T - 1)], th.arm_extra_margin_px * s)
+            for t in range(T)
+        ]
+
+    def mask(self, t: int, c: int) -> Mask:
+        return np.asarray(self.scene.labels[t] == c + 1)
+
+    def cover(self, t: int, c: int) -> Mask:
+        """What can hide object ``c`` at ``t``: an arm where FK puts one, or another object.
+
+        Dark pixels elsewhere are not occluders: a slot outline or the stacking mark under a removed
+        object is what an object's disappearance reveals, not what hides it.
+        """
+        labels = self.scene.labels[t]
+        arm = ~self.scene.table[t] & (labels == 0) & ~self.scene.colourful[t] & self.arm_zone[t]
+        return dilate(arm | ((labels > 0) & (labels != c + 1)), 2 * self.scene.scale)
+
+    def hidden_or_seen(self, blob: Mask, t: int, c: int, fraction: float | None = None) -> bool:
+        """Is ``blob`` (where object ``c`` would be at ``t``) mostly behind something or showing ``c``?"""
+        n = max(int(blob.sum()), 1)
+        ok = self.cover(t, c) | dilate(self.mask(t, c), 2)
+        need = self.th.covered_fraction if fraction is None else fraction
+        return float((blob & ok).sum()) / n >= need
+
+    def carried(self, blob: Mask, t_from: int, t_to: int, c: int) -> bool:
+        """Could a gripper holding ``blob`` at ``t_from`` have taken it to where it is hidden or seen at ``t_to``?
+
+        A gripper holds something only when it is closed, it touches the blob and the blob reaches its
+        TCP (between the fingers). Only a gripper that moves (its drawn silhouette changes) carries
+        anything; the blob, moved with the gripper's projected TCP, must then be mostly hidden (a held
+        object turns in and out of view behind the gripper and arm) or seen there. (An open gripper
+        only pushes: the object stays within a plausible step, or is hidden where it was.)
+        """
+        uv = self.scene.arms.tcp_uv
+        v, u = np.nonzero(blob)
+        for a in range(2):
+            if min(self.scene.grip[t_from, a], self.scene.grip[t_to, a]) >= self.th.closed_grip:
+                continue
+            if not (blob & self.grip[a][t_from]).any() or not self.gripper_moved(a, t_from, t_to):
+                continue
+            reach = float(np.hypot(u - uv[a, t_from, 0], v - uv[a, t_from, 1]).min())
+            if reach > self.th.hold_reach_px * self.scene.scale:
+                continue
+            du, dv = uv[a, t_to] - uv[a, t_from]
+            if self.hidden_or_seen(_shift(blob, float(du), float(dv)), t_to, c, self.th.carried_covered_fraction):
+                return True
+        return False
+
+    def gripper_moved(self, a: int, t0: int, t1: int) -> bool:
+        g = self.scene.arms.gripper[a]
+        return int((g[t0] != g[t1]).sum()) >= self.th.gripper_moved_px * self.scene.scale**2
+
+    def vanished(self, t: int, c: int) -> list[Mask]:
+        """Blobs of ``c`` at ``t - 1`` with nothing of ``c`` near them at ``t`` and no physical explanation."""
+        now = self.mask(t, c)
+        out = []
+        for blob in _components(self.mask(t - 1, c), self.min_px):
+            if (dilate(blob, self.step) & now).sum() >= 0.25 * blob.sum():
+                continue  # still there, or moved a plausible step
+            small = blob.sum() < 2 * self.min_px
+            if small and t >= 2 and (dilate(blob, self.step) & self.mask(t - 2, c)).sum() < 0.5 * blob.sum():
+                continue  # a one-frame sliver (turning into view behind an arm and out again), not an object
+            if (blob & self.scene.table[t]).sum() < 0.5 * blob.sum():
+                continue  # not (yet) table where it was: a washed-out ghost of it, or something unexplained on top
+            if _touches_border(blob) or self.hidden_or_seen(blob, t, c) or self.carried(blob, t - 1, t, c):
+                continue
+            out.append(blob)
+        return out
+
+    def appeared(self, t: int, c: int) -> list[Mask]:
+        """Blobs of ``c`` at ``t`` with nothing of ``c`` near them at ``t - 1`` and no physical explanation."""
+        before = self.mask(t - 1, c)
+        out = []
+        for blob in _components(self.mask(t, c), self.min_px):
+            if (dilate(blob, self.step) & before).sum() >= 0.25 * blob.sum():
+                continue
+            if _touches_border(blob) or self.hidden_or_seen(blob, t - 1, c) or self.carried(blob, t, t - 1, c):
+                continue
+            out.append(blob)
+        return out
+
+
+def check_objects(scene: HeadScene, th: Thresholds) -> Finding | None:
+    """Objects vanishing, appearing (a duplicate, or out of nothing) or jumping, with no arm to explain it."""
+    if not scene.classes:
+        return None
+    of = _ObjectFrames(scene, th)
+    T = scene.length
+    for t in range(1, T - 1):
+        for c, cls in enumerate(scene.classes):
+            gone = [b for b in of.vanished(t, c) if (dilate(b, of.step) & of.mask(t + 1, c)).sum() < 0.25 * b.sum()]
+            new = [b for b in of.appeared(t, c) if (dilate(b, 2) & of.mask(t + 1, c)).sum() >= 0.5 * b.sum()]
+            if gone and new:
+                (u0, v0), (u1, v1) = _centre(gone[0]), _centre(new[0])
+                d = float(np.hypot(u1 - u0, v1 - v0))
+                return Finding(
+                    t, OBJECT_MOTION, f"{cls.name} jumped {d:.0f} px from ({u0}, {v0}) to ({u1}, {v1}) in cam_high"
+                )
+            if gone:
+                u, v = _centre(gone[0])
+                return Finding(
+                    t, OBJECT_DISAPPEARED, f"{cls.name} vanished at ({u}, {v}) in cam_high, not hidden or carried"
+                )
+            if new:
+                u, v = _centre(new[0])
+                others = of.mask(t, c) & ~dilate(new[0], of.step)
+                what = "a second " + cls.name if others.sum() >= of.min_px else cls.name
+                return Finding(
+                    t, OBJECT_APPEARED, f"{what} appeared at ({u}, {v}) in cam_high, not revealed or carried"
+                )
+    return None
+
+
+# ---------------------------------------------------------------------- arms
+
+
+def static_background(scene: HeadScene, margin: float) -> Mask:
+    """Arm-like pixels that are not arms: unpredicted and arm-like in most frames where no arm is predicted."""
+    T = scene.length
+    unpredicted = np.stack([~dilate(scene.arms.whole[t], margin) for t in range(T)])
+    armlike = ~scene.table & (scene.labels == 0) & ~scene.colourful
+    seen = (armlike & unpredicted).sum(axis=0)
+    free = unpredicted.sum(axis=0)
+    return dilate((seen >= 0.5 * np.maximum(free, 1)) & (free > 0), 1)
+
+
+def arm_mismatch(scene: HeadScene, th: Thresholds) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per frame, the largest region of predicted-but-absent arm ``(T, 2)`` (per arm) and of unpredicted arm ``(T,)``.
+
+    The arm seen at frame ``t`` may lag the state: in the imagined branch the state is the command, which
+    the arms of the training data reached up to ~10 px later (median 0.5 px; measured on the simulated
+    training set). So the arm must be inside the silhouettes of ``t - 1`` or ``t`` (the swept region) and
+    must cover where both put it. Pixels where an object was ever seen before ``t`` are not counted as
+    unexplained arm: a world model washes objects out, and a faded object is neither table nor object.
+    """
+    s = scene.scale
+    margin = th.arm_extra_margin_px * s
+    static = static_background(scene, margin)
+    T = scene.length
+    miss = np.zeros((T, 2))
+    extra = np.zeros(T)
+    seen_objects = np.zeros(scene.labels.shape[1:], bool)
+    for t in range(T):
+        p = max(t - 1, 0)
+        seen_objects |= dilate((scene.labels[p] > 0) | scene.colourful[p], 2 * s)
+        nontable = dilate(~scene.table[t], th.arm_miss_slack_px * s)
+        for a in range(2):
+            both = scene.arms.distal[a, t] & scene.arms.distal[a, p]
+            miss[t, a] = _largest_region(erode(both, 1) & ~nontable)
+        armlike = ~scene.table[t] & (scene.labels[t] == 0) & ~scene.colourful[t]
+        swept = scene.arms.whole[t] | scene.arms.whole[p]
+        extra[t] = _largest_region(erode(armlike & ~dilate(swept, margin) & ~static & ~seen_objects, 1))
+    return miss, extra
+
+
+def check_arms(scene: HeadScene, th: Thresholds) -> Finding | None:
+    """The head view must show each arm where the state's forward kinematics puts it."""
+    s2 = scene.scale**2
+    miss, extra = arm_mismatch(scene, th)
+    bad_miss = miss >= th.arm_miss_px * s2
+    bad_extra = extra >= th.arm_extra_px * s2
+    bad = bad_miss.any(axis=1) | bad_extra
+    for t in range(1, scene.length):
+        if bad[t] and (t + 1 >= scene.length or bad[t + 1]):
+            parts = []
+            for a, side in enumerate(("left", "right")):
+                if bad_miss[t, a]:
+                    parts.append(f"no {side} arm where its FK projection is ({miss[t, a]:.0f} px of table)")
+            if bad_extra[t]:
+                parts.append(f"an arm where none is commanded ({extra[t]:.0f} px)")
+            return Finding(t, ARM_MOTION, "cam_high shows " + " and ".join(parts))
+    return None
+
+
+# ---------------------------------------------------------------------- views
+
+
+def wrist_signature(frames: NDArray[np.uint8], dark: int, reference: int = 3) -> Mask:
+    """Pixels dark in each of a wrist view's first ``reference`` frames: its own gripper, always in view."""
+    n = min(reference, frames.shape[0])
+    return np.asarray((frames[:n].max(axis=-1) < dark).all(axis=0))
+
+
+def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thresholds) -> Finding | None:
+    """Each view must stay the camera it is: the head view's static background must not change all at once,
+    and a wrist view must keep showing its own gripper (and the head view must not show it)."""
+    T = head.length
+    s = head.scale
+    bad = np.zeros(T, bool)
+    why: list[str] = [""] * T
+    im = head.images.astype(np.int16)
+    for t in range(1, T):
+        moving = dilate(head.arms.whole[t - 1] | head.arms.whole[t], 3 * s)
+        objects = dilate((head.labels[t - 1] > 0) | (head.labels[t] > 0), 2 * s)
+        background = ~moving & ~objects
+        n = int(background.sum())
+        if n >= 0.1 * background.size:
+            changed = np.abs(im[t] - im[t - 1]).max(axis=-1) > 40
+            frac = float((changed & background).sum()) / n
+            if frac >= th.background_change:
+                bad[t] = True
+                why[t] = f"cam_high's static background changed by {frac:.0%} in one frame"
+    for view, frames in wrists.items():
+        sig = wrist_signature(frames, th.signature_dark)
+        if sig.sum() < 20 * s * s:
+            continue  # no gripper in view: nothing to recognise this camera by
+        own = (frames.max(axis=-1) < th.signature_dark + 20)[:, sig].mean(axis=1)  # (T,)
+        in_head = (head.images.max(axis=-1) < th.signature_dark + 20)[:, sig].mean(axis=1)
+        base = float(in_head[: min(3, T)].mean())
+        for t in range(1, T):
+            if bad[t]:
+                continue
+            if own[t] < th.wrist_signature:
+                bad[t] = True
+                why[t] = f"{view} no longer shows its own gripper ({own[t]:.0%} of it)"
+            elif in_head[t] >= max(th.wrist_signature, base + 0.3):
+                bad[t] = True
+                why[t] = f"cam_high shows {view}'s gripper ({in_head[t]:.0%} of it)"
+    for t in range(1, T):
+        if bad[t] and (t + 1 >= T or bad[t + 1] or _persists(head, t)):
+            return Finding(t, CROSS_VIEW, why[t])
+    return None
+
+
+def _persists(head: HeadScene, t: int) -> bool:
+    """A background jump at ``t`` that does not jump back at ``t + 1`` (the new content stays)."""
+    if t + 1 >= head.length:
+        return True
+    a = head.images[t - 1].astype(np.int16)
+    c = head.images[t + 1].astype(np.int16)
+    back = np.abs(c - a).max(axis=-1) <= 40
+    return float(back.mean()) < 0.8

@@ -1,0 +1,272 @@
+"""What the hallucination detector sees in an episode: arm silhouettes from FK, arm pixels, object pixels.
+
+Why a silhouette: the state of every frame (the measured joints in the real branch, the commanded
+stride-aligned action in the imagined one) says where each arm *must* appear in the head view. The
+arms are drawn as capsules along the DH offsets of the UR chain (the links), spheres at the joints
+(the housings) and a capsule from the flange through the palm to the fingertips (the gripper), each
+projected through the rig's head ``CameraModel`` with its radius scaled by depth. It is coarse (no
+shading, no exact housings), so every comparison with the image allows a pixel or two of slack, but
+it tells "the arm is there" from "the arm is not there" on every frame of every episode
+(measured recall of the drawn forearm-to-gripper silhouette on observed arm pixels: ≥ 0.77, median
+0.96, over 9,120 arm-frames of the simulated training set).
+
+Why colour rules for "arm pixels": the scene is a warm beige table under a white light, grey arms,
+dark grippers and saturated objects (see ``hw_drivers/sim/scene.py``). A pixel is *table* when its
+chromaticity is close to the table's (learnt from the episode's start frame, outside the predicted
+arms and the objects) and it is not much darker than the table; *object* when
+:func:`pilworld.perception.colour.segment` gives it a class; *arm-like* otherwise. Static dark
+fixtures (slot outlines, the stacking mark, the table edge) are arm-like too; checks that need to
+ignore them subtract the episode's static background (arm-like pixels far from any predicted arm in
+most frames).
+
+Pixel lengths and areas below are tuned at 128×128 and scale with the image width.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.camera_model import CameraModel
+from pilworld.config.rig import RigConfig
+from pilworld.kinematics.dual_arm import ArmMount
+from pilworld.kinematics.fk import fk_frames
+from pilworld.perception.colour import ColourClass, segment
+from pilworld.types import LEFT_ARM, RIGHT_ARM
+
+Mask = NDArray[np.bool_]
+Image = NDArray[np.uint8]
+REFERENCE_WIDTH = 128  # the image width the pixel thresholds are tuned at
+
+
+@dataclass(frozen=True)
+class ArmShape:
+    """A coarse visual model of a UR arm with a parallel-jaw gripper (metres), for silhouettes only."""
+
+    link_radius: tuple[float, ...] = (0.045, 0.045, 0.045, 0.034, 0.034, 0.034)  # capsule along DH offset i
+    joint_radius: tuple[float, ...] = (0.048, 0.048, 0.048, 0.036, 0.036, 0.036)  # housing at joint i
+    coupling_radius: float = 0.035  # flange → palm cylinder
+    palm_half_width: float = 0.05  # palm box half-size along the closing (tool y) axis
+    palm_radius: float = 0.025
+    palm_below_tcp: float = 0.06  # palm centre above the TCP, along the tool axis
+    finger_radius: float = 0.02
+    distal_from_link: int = 2  # links from this index on (the forearm) count as "distal"
+
+    def capsules(self, mount: ArmMount, q6: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(T, 6)`` joints → capsule end points ``(T, N, 2, 3)`` in the rig frame and radii ``(N,)``.
+
+        Capsules are ordered base → gripper; the last three are the gripper (coupling, palm, fingers).
+        """
+        frames = mount.T_rig_base @ fk_frames(q6, mount.dh)  # (T, 7, 4, 4)
+        origin = frames[..., :3, 3]
+        ends: list[NDArray[np.float64]] = []
+        radii: list[float] = []
+        for i in range(6):
+            ends.append(np.stack([origin[:, i], origin[:, i + 1]], axis=1))
+            radii.append(self.link_radius[i])
+            z = frames[:, i, :3, 2]  # the joint axis: the housing is a short cylinder along it
+            r = self.joint_radius[i]
+            ends.append(np.stack([origin[:, i] - z * r * 0.8, origin[:, i] + z * r * 0.8], axis=1))
+            radii.append(r)
+        tcp = frames[:, 6] @ mount.T_flange_tcp
+        p, y, z = tcp[:, :3, 3], tcp[:, :3, 1], tcp[:, :3, 2]
+        palm = p - self.palm_below_tcp * z
+        ends.append(np.stack([origin[:, 6], palm], axis=1))
+        radii.append(self.coupling_radius)
+        ends.append(np.stack([palm - self.palm_half_width * y, palm + self.palm_half_width * y], axis=1))
+        radii.append(self.palm_radius)
+        ends.append(np.stack([p - 0.03 * z, p + 0.01 * z], axis=1))
+        radii.append(self.finger_radius)
+        return np.stack(ends, axis=1), np.asarray(radii)
+
+    def first_distal(self) -> int:
+        """Index of the first distal capsule in :meth:`capsules` (two per link: offset, housing)."""
+        return 2 * self.distal_from_link
+
+
+@dataclass(frozen=True, eq=False)
+class ArmViews:
+    """Predicted arms in the head view, per frame: silhouettes and projected TCPs."""
+
+    whole: NDArray[np.uint8]  # (T, H, W) 1 where either arm is predicted
+    distal: NDArray[np.uint8]  # (2, T, H, W) forearm → fingertips of the left / right arm
+    gripper: NDArray[np.uint8]  # (2, T, H, W) the gripper and last wrist of the left / right arm
+    tcp_uv: NDArray[np.float64]  # (2, T, 2) projected TCPs
+    tcp_visible: NDArray[np.bool_]  # (2, T)
+
+
+def predict_arms(rig: RigConfig, state: NDArray[np.floating], shape: ArmShape | None = None) -> ArmViews:
+    """Draw both arms of ``state`` ``(T, 14)`` into the head view of ``rig``."""
+    shape = shape or ArmShape()
+    cam = rig.head_camera_model
+    kin = rig.kinematics
+    q = np.asarray(state, dtype=np.float64)
+    T = q.shape[0]
+    whole = np.zeros((T, cam.height, cam.width), np.uint8)
+    distal = np.zeros((2, T, cam.height, cam.width), np.uint8)
+    gripper = np.zeros_like(distal)
+    tcp_uv = np.zeros((2, T, 2))
+    tcp_visible = np.zeros((2, T), bool)
+    first_distal = shape.first_distal()
+    for a, (mount, joints) in enumerate(((kin.left, LEFT_ARM), (kin.right, RIGHT_ARM))):
+        ends, radii = shape.capsules(mount, q[:, joints])
+        proj = cam.project_detailed(ends)  # uv (T, N, 2, 2), depth (T, N, 2)
+        tcp = kin.gripper_points(q)[:, a]
+        uv, vis = cam.project(tcp)
+        tcp_uv[a], tcp_visible[a] = uv, vis
+        n = ends.shape[1]
+        fx = float(cam.K[0, 0])
+        for t in range(T):
+            for i in range(n):
+                d = proj.depth[t, i]
+                if d.min() < 0.05:  # behind or at the camera: the head camera looks down, so never in practice
+                    continue
+                p0, p1 = proj.uv[t, i]
+                r0, r1 = fx * radii[i] / float(d[0]), fx * radii[i] / float(d[1])
+                _capsule(whole[t], p0, p1, r0, r1)
+                if i >= first_distal:
+                    _capsule(distal[a, t], p0, p1, r0, r1)
+                if i >= n - 4:  # last wrist housing + coupling, palm, fingers
+                    _capsule(gripper[a, t], p0, p1, r0, r1)
+    return ArmViews(whole=whole, distal=distal, gripper=gripper, tcp_uv=tcp_uv, tcp_visible=tcp_visible)
+
+
+_SHIFT = 4  # cv2 fixed-point bits for sub-pixel end points
+_ONE = 1 << _SHIFT
+
+
+def _capsule(canvas: NDArray[np.uint8], p0: NDArray[np.float64], p1: NDArray[np.float64], r0: float, r1: float) -> None:
+    """A capsule seen in perspective: discs of radii ``r0``, ``r1`` (pixels) at its ends and their hull."""
+    lim = 4.0 * max(canvas.shape)  # keep far-off points inside cv2's coordinate range
+    a = np.clip(p0, -lim, lim)
+    b = np.clip(p1, -lim, lim)
+    r0, r1 = min(r0, lim), min(r1, lim)
+    for c, r in ((a, r0), (b, r1)):
+        centre = (round(float(c[0]) * _ONE), round(float(c[1]) * _ONE))
+        cv2.circle(canvas, centre, round(r * _ONE), 1, thickness=-1, lineType=cv2.LINE_8, shift=_SHIFT)
+    d = b - a
+    length = float(np.hypot(d[0], d[1]))
+    if length < 1e-6:
+        return
+    n = np.array([-d[1], d[0]]) / length
+    quad = np.stack([a + n * r0, b + n * r1, b - n * r1, a - n * r0])
+    cv2.fillConvexPoly(canvas, np.round(quad * _ONE).astype(np.int32), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+
+
+# ---------------------------------------------------------------------- pixels
+
+
+@dataclass(frozen=True)
+class TableColour:
+    """The table's chromaticity ``(r, g, b) / (r + g + b)`` and brightness (max channel), from one frame."""
+
+    chroma: tuple[float, float, float]
+    value: float
+
+    @staticmethod
+    def default() -> TableColour:
+        # TABLE_RGBA of the simulated rig (0.75, 0.72, 0.65) under its white key light.
+        s = 0.75 + 0.72 + 0.65
+        return TableColour((0.75 / s, 0.72 / s, 0.65 / s), 200.0)
+
+
+def learn_table(image: Image, exclude: Mask) -> TableColour:
+    """The table colour of ``image`` from its pixels outside ``exclude`` (predicted arms, objects)."""
+    im = image.reshape(-1, 3).astype(np.float32)
+    keep = ~exclude.reshape(-1)
+    v = im.max(axis=1)
+    keep &= v > 60  # the table edge, floor and slot outlines are far darker than the lit table
+    if keep.sum() < 50:
+        return TableColour.default()
+    px = im[keep]
+    s = px.sum(axis=1, keepdims=True) + 1e-6
+    chroma = np.median(px / s, axis=0)
+    return TableColour((float(chroma[0]), float(chroma[1]), float(chroma[2])), float(np.median(v[keep])))
+
+
+def table_mask(images: Image, table: TableColour, *, max_chroma_distance: float = 0.018) -> Mask:
+    """``(..., H, W)`` True where ``images`` ``(..., H, W, 3)`` look like the table (chromaticity and brightness).
+
+    The grey arms are ~0.03 away from the table's chromaticity (bluer) and the grippers far darker; the
+    table's own shading stays within ~0.008.
+    """
+    im = images.astype(np.float32)
+    s = im.sum(axis=-1) + 1e-6
+    ref = np.asarray(table.chroma, dtype=np.float32)
+    dist = np.abs(im / s[..., None] - ref).max(axis=-1)
+    out: Mask = (dist <= max_chroma_distance) & (im.max(axis=-1) >= 0.55 * table.value)
+    return out
+
+
+def object_labels(images: Image, classes: list[ColourClass], faded_saturation: float = 0.22) -> NDArray[np.uint8]:
+    """``(T, H, W)`` 0 = no object, ``i + 1`` = ``classes[i]``, for ``images`` ``(T, H, W, 3)``.
+
+    The scripted policies' colour test (saturation ≥ 0.35) but with value ≥ 0.2 instead of 0.12 (video
+    compression leaves strongly tinted one-pixel seams, value ~0.13, along the edges of dark grippers on
+    the table; the objects' darkest shaded faces stay above 0.2), plus *faded* pixels: bright (value ≥ 0.45)
+    with saturation ≥ ``faded_saturation``. World-model frames wash colours out, and a faded object is
+    still an object; the table's own saturation stays below 0.16 in 99 % of its pixels. The brightness
+    floor keeps out the anti-aliased edges of dark things on the table, whose saturation grows as their
+    value falls.
+    """
+    out = np.zeros(images.shape[:3], np.uint8)
+    if not classes:
+        return out
+    for t in range(images.shape[0]):
+        masks = segment(images[t], classes, min_value=0.2)
+        faded = segment(images[t], classes, min_saturation=faded_saturation, min_value=0.45)
+        for i, c in enumerate(classes):
+            out[t][masks[c.name] | faded[c.name]] = i + 1
+    return out
+
+
+def colourful_mask(images: Image, min_saturation: float = 0.3, min_value: float = 0.2) -> Mask:
+    """``(..., H, W)`` True for saturated pixels of any hue (``images`` ``(..., H, W, 3)`` RGB): objects.
+
+    The arms (saturation ~0.05), grippers and table (~0.13) never pass; compression seams along dark
+    edges are kept out by the value floor.
+    """
+    im = images.astype(np.int16)
+    mx = im.max(axis=-1)
+    mn = im.min(axis=-1)
+    out: Mask = (mx - mn >= min_saturation * mx) & (mx >= min_value * 255)
+    return out
+
+
+def task_classes(task: str, instruction: str = "") -> list[ColourClass]:
+    """The object colours of a simulated task (by name, else by instruction); [] when unknown."""
+    from pilworld.policies.scripted.knowledge import KNOWLEDGE, knowledge_for_instruction
+
+    if task in KNOWLEDGE:
+        return list(KNOWLEDGE[task]().classes)
+    try:
+        return list(knowledge_for_instruction(instruction).classes)
+    except ValueError:
+        return []
+
+
+def disk(radius_px: float) -> NDArray[np.uint8]:
+    """A filled disc structuring element of the given radius (at least a single pixel)."""
+    r = max(0, round(radius_px))
+    return np.asarray(cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)), dtype=np.uint8)
+
+
+def dilate(mask: NDArray[np.bool_] | NDArray[np.uint8], radius_px: float) -> Mask:
+    m = np.ascontiguousarray(mask, dtype=np.uint8)
+    if radius_px < 0.5:
+        return m.astype(bool)
+    return cv2.dilate(m, disk(radius_px)).astype(bool)
+
+
+def erode(mask: NDArray[np.bool_] | NDArray[np.uint8], radius_px: float) -> Mask:
+    m = np.ascontiguousarray(mask, dtype=np.uint8)
+    if radius_px < 0.5:
+        return m.astype(bool)
+    return cv2.erode(m, disk(radius_px)).astype(bool)
+
+
+def head_camera(rig: RigConfig) -> CameraModel:
+    return rig.head_camera_model

@@ -1,0 +1,71 @@
+"""``pilworld demo`` end to end at the smallest size: paired runs of every task, judged, metrics, report."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+from pilworld.cli.main import main
+from pilworld.data.outcomes import read_outcomes
+from pilworld.data.reader import EpisodeStore
+from pilworld.demo import DEFAULT_CHECKPOINTS, demo_size, summary_table
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, object], str]:
+    out = tmp_path_factory.mktemp("demo") / "run"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main(["demo", "--out", str(out), "--subtasks", "1", "--rounds", "1", "--json"])
+    assert rc == 0
+    text = buf.getvalue()
+    return out, json.loads(text.strip().splitlines()[-1]), text
+
+
+def test_metrics_json_has_the_acceptance_keys(demo_run: tuple[Path, dict[str, object], str]) -> None:
+    out, _, _ = demo_run
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics["tasks"]) == {"sort_cubes", "stack_bowls", "stack_blocks"}
+    for m in metrics["tasks"].values():
+        assert {"sr_real", "sr_imag", "abs_delta_sr", "hfr"} <= set(m)
+    assert {"abs_delta_sr", "hfr", "pearson", "mmrv"} <= set(metrics["overall"])
+
+
+def test_every_episode_is_judged_and_both_origins_are_stored(demo_run: tuple[Path, dict[str, object], str]) -> None:
+    out, summary, _ = demo_run
+    store = EpisodeStore(out)
+    assert store.num_episodes == 2 * 3 * len(DEFAULT_CHECKPOINTS)
+    assert {e["origin"] for e in store.episodes} == {"real", "imagined"}
+    judged = {o.episode_index for o in read_outcomes(out) if o.judge_id == "vision"}
+    assert judged == set(range(store.num_episodes))
+    assert summary["pairs"] == 9
+
+
+def test_report_and_summary_table(demo_run: tuple[Path, dict[str, object], str]) -> None:
+    out, summary, text = demo_run
+    html = (out / "report.html").read_text()
+    assert html.count("<video") == 9
+    assert "SR_real" in text and "Pearson" in text and "MMRV" in text
+    assert summary["report_html"] == str(out / "report.html")
+
+
+def test_rerun_resumes_without_redoing_work(demo_run: tuple[Path, dict[str, object], str]) -> None:
+    out, _, _ = demo_run
+    before = EpisodeStore(out).num_episodes
+    with contextlib.redirect_stdout(io.StringIO()) as buf:
+        assert main(["demo", "--out", str(out), "--subtasks", "1", "--rounds", "1", "--json"]) == 0
+    again = json.loads(buf.getvalue().strip().splitlines()[-1])
+    assert again["branches_run"] == 0 and EpisodeStore(out).num_episodes == before
+
+
+def test_sizes_and_table() -> None:
+    assert demo_size(False).checkpoints == DEFAULT_CHECKPOINTS and demo_size(False).subtasks == 6
+    assert len(demo_size(True).checkpoints) == 5 and demo_size(True).subtasks == 20
+    with pytest.raises(ValueError, match="subtasks"):
+        demo_size(False, 0)
+    table = summary_table({"tasks": {"t": {"sr_real": 0.5, "sr_imag": 0.25, "abs_delta_sr": 0.25, "hfr": 0.9}}})
+    assert "50%" in table and "25%" in table and "0.90" in table
