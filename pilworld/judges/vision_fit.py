@@ -102,15 +102,22 @@ def outline_points(shape: Shape, pose: Pose2D) -> FloatArray:
 
 @dataclass(frozen=True)
 class Window:
-    """A pixel rectangle ``[u0, u0 + w) × [v0, v0 + h)`` of the image."""
+    """A pixel rectangle ``[u0, u0 + w) × [v0, v0 + h)``; it may reach past the image's borders."""
 
     u0: int
     v0: int
     w: int
     h: int
 
-    def crop(self, image: NDArray[np.generic]) -> NDArray[np.generic]:
-        return image[self.v0 : self.v0 + self.h, self.u0 : self.u0 + self.w]
+    def crop(self, image: BoolArray) -> BoolArray:
+        """The window's part of a boolean image; pixels past the image's borders are False."""
+        out = np.zeros((self.h, self.w), dtype=np.bool_)
+        H, W = image.shape[:2]
+        u0, v0 = max(self.u0, 0), max(self.v0, 0)
+        u1, v1 = min(self.u0 + self.w, W), min(self.v0 + self.h, H)
+        if u1 > u0 and v1 > v0:
+            out[v0 - self.v0 : v1 - self.v0, u0 - self.u0 : u1 - self.u0] = image[v0:v1, u0:u1]
+        return out
 
 
 def silhouette_uv(camera: CameraModel, shape: Shape, pose: Pose2D) -> FloatArray | None:
@@ -124,12 +131,16 @@ def silhouette_uv(camera: CameraModel, shape: Shape, pose: Pose2D) -> FloatArray
 
 
 def window_around(uv: FloatArray, margin: int, width: int, height: int) -> Window | None:
-    """The image rectangle around polygon ``uv`` grown by ``margin`` pixels (None if off the image)."""
-    u0 = max(0, math.floor(float(uv[:, 0].min())) - margin)
-    v0 = max(0, math.floor(float(uv[:, 1].min())) - margin)
-    u1 = min(width, math.ceil(float(uv[:, 0].max())) + margin + 1)
-    v1 = min(height, math.ceil(float(uv[:, 1].max())) + margin + 1)
-    if u1 <= u0 or v1 <= v0:
+    """The rectangle around polygon ``uv`` grown by ``margin`` pixels, or None if it misses the image.
+
+    It may reach past the image's borders (by at most one image size): a silhouette cut off by the
+    border must count its outline out there as unseen, not as absent.
+    """
+    u0 = max(-width, math.floor(float(uv[:, 0].min())) - margin)
+    v0 = max(-height, math.floor(float(uv[:, 1].min())) - margin)
+    u1 = min(2 * width, math.ceil(float(uv[:, 0].max())) + margin + 1)
+    v1 = min(2 * height, math.ceil(float(uv[:, 1].max())) + margin + 1)
+    if u1 <= max(u0, 0) or v1 <= max(v0, 0) or u0 >= width or v0 >= height:
         return None
     return Window(u0, v0, u1 - u0, v1 - v0)
 

@@ -56,7 +56,6 @@ LATEST = 3  # estimates combined (median) from the latest good frames
 MIN_EXPLAINED = 0.5  # the object below must account for this share of its colour seen anywhere
 SETTLED_QUALITY = 0.5  # estimates clear enough to tell where the object ended up (see verdict)
 MOVED = 0.02  # an estimate this far from the latest one: the object was somewhere else then [m]
-STILL = 0.01  # the object moved less than this between the last clear estimates [m]
 # Offset limits [m] where the checker's tolerance is not what decides. A bowl more than ~1.5 cm (medium)
 # or ~1.2 cm (small) off the centre of the bowl below rests on its flaring wall and tilts past the
 # checker's 0.25 rad ("not nested level"), and the tilted rim the camera sees sits closer to the centre
@@ -242,8 +241,6 @@ class _EpisodeJudgement:
             settled.append(e)
         best = max(e.quality for e in settled)
         clear = [e for e in settled if e.quality >= CLEAR_SHARE * best][:LATEST]
-        if len(clear) >= 2 and float(np.hypot(*(clear[0].fit.pose.xy - clear[1].fit.pose.xy))) > STILL:
-            return Verdict(success=False, reason=f"{goal.target} is still moving at the end")
         offsets = []
         for e in clear:
             ref = self.reference_xy(e)

@@ -1,0 +1,120 @@
+"""``pilworld bench judges``: how well the image-only success judge agrees with the privileged checker.
+
+Runs :class:`~pilworld.judges.vision_success.VisionSuccessJudge` on every real-branch episode of a
+collected dataset that carries the simulator checker's verdict (judge ``sim_checker`` in
+``meta/outcomes.parquet``) and reports the agreement overall and per task, the confusion matrix per task
+(``tp``: both say success, ``fp``: the judge says success and the checker failure, ``fn``: the other way
+round, ``tn``: both say failure), the judge's seconds per episode (decoding the videos is timed apart),
+and every disagreement with both sides' reasons. Nothing is written to the dataset.
+
+The acceptance measurement of issue #7 uses a fresh collection on seeds reserved for judge validation::
+
+    pilworld sim collect --task all --checkpoint all --episodes 3 --seed 3000000 --out /tmp/judge_val --workers 2
+
+and then ``run_judge_bench("/tmp/judge_val", RigConfig.load("configs/rig/sim_dual_ur5e.yaml"))``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from pilworld.bench.common import machine_info
+from pilworld.config.rig import RigConfig
+from pilworld.data.outcomes import read_outcomes
+from pilworld.data.reader import EpisodeStore
+from pilworld.judges.base import Judge, JudgeContext, episode_task
+from pilworld.judges.vision_success import VisionSuccessJudge
+
+CHECKER_ID = "sim_checker"  # the judge id pilworld.collection.collect records the checker's verdicts under
+
+
+def _cell(judge: bool, checker: bool) -> str:
+    if judge:
+        return "tp" if checker else "fp"
+    return "fn" if checker else "tn"
+
+
+def _agreement(confusion: dict[str, int]) -> float | None:
+    n = sum(confusion.values())
+    return round((confusion["tp"] + confusion["tn"]) / n, 4) if n else None
+
+
+def run_judge_bench(
+    dataset_root: str | Path,
+    rig: RigConfig,
+    *,
+    judge: Judge | None = None,
+    episodes: Iterable[int] | None = None,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """Agreement of ``judge`` (default: the image-only success judge) with the checker on ``dataset_root``.
+
+    Only real-branch episodes with a ``sim_checker`` verdict are judged (``episodes`` narrows them down).
+    Returns a JSON-friendly dict: ``n``, ``agreement``, ``per_task`` (``n``, ``agreement``,
+    ``confusion`` {tp, fp, fn, tn}), ``seconds_per_episode`` (judging), ``load_seconds_per_episode``
+    (decoding), ``disagreements`` (one dict per episode: index, task, subtask, checkpoint, seed, both
+    verdicts and reasons) and the machine it ran on. Raises ``ValueError`` if there is nothing to judge.
+    """
+    root = Path(dataset_root)
+    judge = judge if judge is not None else VisionSuccessJudge()
+    store = EpisodeStore(root)
+    checker = {o.episode_index: o.success for o in read_outcomes(root) if o.judge_id == CHECKER_ID}
+    wanted = sorted(checker) if episodes is None else [i for i in episodes if i in checker]
+    per_task: dict[str, dict[str, int]] = {}
+    disagreements: list[dict[str, Any]] = []
+    judge_s = load_s = 0.0
+    n = 0
+    t_start = time.perf_counter()
+    for i in wanted:
+        t0 = time.perf_counter()
+        ep = store.load(i)
+        t1 = time.perf_counter()
+        if ep.origin != "real":
+            continue
+        task = episode_task(ep)
+        verdict = judge.judge(ep, JudgeContext(rig=rig, task=task))
+        t2 = time.perf_counter()
+        load_s += t1 - t0
+        judge_s += t2 - t1
+        n += 1
+        said, truth = bool(verdict.success), bool(checker[i])
+        confusion = per_task.setdefault(task, {"tp": 0, "fp": 0, "fn": 0, "tn": 0})
+        confusion[_cell(said, truth)] += 1
+        if said != truth:
+            disagreements.append(
+                {
+                    "episode_index": i,
+                    "task": task,
+                    "subtask_index": ep.subtask_index,
+                    "checkpoint": ep.checkpoint,
+                    "seed": ep.seed,
+                    "checker": truth,
+                    "checker_reason": str(ep.extra.get("checker", "")),
+                    "judge": said,
+                    "judge_reason": verdict.reason,
+                }
+            )
+        if progress:
+            print(f"episode {i}: {task} subtask {ep.subtask_index}: judge {said}, checker {truth}", flush=True)
+    if n == 0:
+        raise ValueError(f"{root}: no real-branch episodes with a {CHECKER_ID!r} verdict to judge")
+    total = {k: sum(c[k] for c in per_task.values()) for k in ("tp", "fp", "fn", "tn")}
+    return {
+        "judge_id": judge.judge_id,
+        "dataset": str(root),
+        "n": n,
+        "agreement": _agreement(total),
+        "confusion": total,
+        "per_task": {
+            task: {"n": sum(c.values()), "agreement": _agreement(c), "confusion": c}
+            for task, c in sorted(per_task.items())
+        },
+        "seconds_per_episode": round(judge_s / n, 3),
+        "load_seconds_per_episode": round(load_s / n, 3),
+        "wall_seconds": round(time.perf_counter() - t_start, 1),
+        "disagreements": disagreements,
+        "machine": machine_info(),
+    }
