@@ -86,6 +86,20 @@ def register(sub: Any) -> None:
     pr.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     pr.set_defaults(handler=_paired)
 
+    jd = benches.add_parser("judges", help="image-only success judge vs the simulator's checker on a dataset")
+    jd.add_argument("dataset", type=Path, help="a dataset with sim_checker verdicts (e.g. from pilworld sim collect)")
+    jd.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    jd.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    jd.set_defaults(handler=_judges)
+
+    hl = benches.add_parser("hallucination", help="hallucination detector on injected faults and clean episodes")
+    hl.add_argument("dataset", type=Path, help="a dataset of real-branch episodes (e.g. from pilworld sim collect)")
+    hl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    hl.add_argument("--per-fault", type=int, default=None, help="faulted episodes per fault type (default: all)")
+    hl.add_argument("--seed", type=int, default=0)
+    hl.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    hl.set_defaults(handler=_hallucination)
+
     wp = benches.add_parser("world-model-presets", help="parameter counts and chunk latency of every native preset")
     wp.add_argument("--presets", default="", help="comma-separated presets (default: all)")
     wp.add_argument("--repeats", type=int, default=10, help="timed calls per preset; the median is reported")
@@ -358,6 +372,31 @@ def _paired(args: argparse.Namespace) -> int:
             f"policy {b['policy_ms_per_round']['median']} ms and env {b['env_ms_per_round']['median']} ms per round, "
             f"realtime x{b['realtime_factor']}"
         )
+    if args.json:
+        print(json.dumps(r))
+    return 0
+
+
+def _judges(args: argparse.Namespace) -> int:
+    from pilworld.bench.judges import run_judge_bench
+    from pilworld.config.rig import RigConfig
+
+    r = run_judge_bench(args.dataset, RigConfig.load(args.rig), progress=not args.json)
+    print(f"judges: image-only judge agrees with the checker on {r['agreement']} of {r['n']} real episodes")
+    for task, t in r["per_task"].items():
+        print(f"  {task}: {t['agreement']} of {t['n']}, confusion {t['confusion']}")
+    if args.json:
+        print(json.dumps(r))
+    return 0
+
+
+def _hallucination(args: argparse.Namespace) -> int:
+    from pilworld.bench.hallucination import run_hallucination_bench
+
+    r = run_hallucination_bench(
+        args.dataset, args.rig, seed=args.seed, per_fault=args.per_fault, progress=not args.json
+    )
+    print(json.dumps({k: v for k, v in r.items() if not isinstance(v, (list, dict))}))
     if args.json:
         print(json.dumps(r))
     return 0

@@ -1,0 +1,40 @@
+"""``pilworld bench judges`` and ``bench hallucination`` print one JSON object on their last line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from pilworld.cli.main import main
+from pilworld.paired import PairedConfig, paired_run
+from pilworld.types import ChunkSpec
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("bench_judges") / "run"
+    cfg = PairedConfig(
+        rig="configs/rig/sim_dual_ur5e.yaml",
+        task="sort_cubes",
+        checkpoints=["scripted_step_30k"],
+        subtasks=1,
+        out=str(out),
+        spec=ChunkSpec(rounds=2),
+    )
+    paired_run(cfg, progress=False)
+    return out
+
+
+def test_bench_judges_json(tiny_run: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "judges", str(tiny_run), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert r["n"] == 1 and "sort_cubes" in r["per_task"]
+    assert set(r["per_task"]["sort_cubes"]["confusion"]) == {"tp", "fp", "fn", "tn"}
+
+
+def test_bench_hallucination_json(tiny_run: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "hallucination", str(tiny_run), "--per-fault", "1", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert "clean" in r and "faults" in r and r["clean"]["n"] >= 1
