@@ -62,8 +62,12 @@ def run_demo(
     rounds: int | None = None,
     seed: int = DEMO_SEED0,
     progress: bool = True,
+    workers: int | None = None,
 ) -> dict[str, Any]:
-    """Run (or resume) the demo into ``out``; returns the metrics and where everything went."""
+    """Run (or resume) the demo into ``out``; returns the metrics and where everything went.
+
+    ``workers`` processes judge the episodes (default: one per CPU).
+    """
     from pilworld.config.rig import RigConfig
     from pilworld.judges.base import judge_dataset, unjudged_episodes
     from pilworld.judges.vision import VisionJudge
@@ -91,7 +95,7 @@ def run_demo(
     judge = VisionJudge()
     rig_cfg = RigConfig.load(rig)
     todo = unjudged_episodes(root, judge.judge_id)
-    judge_dataset(root, [judge], rig_cfg, episodes=todo, progress=progress)
+    judge_dataset(root, [judge], rig_cfg, episodes=todo, progress=progress, workers=workers)
     stages["judging_s"] = time.monotonic() - t
 
     t = time.monotonic()

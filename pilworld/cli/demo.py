@@ -26,6 +26,7 @@ def register(sub: Any) -> None:
     p.add_argument("--rounds", type=int, default=None, help="closed-loop rounds per subtask (default 5)")
     p.add_argument("--seed", type=int, default=None, help="first layout seed (default 5000000, unseen in training)")
     p.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    p.add_argument("--workers", type=int, default=None, help="processes judging the episodes (default: CPUs)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.set_defaults(handler=_demo)
 
@@ -41,6 +42,7 @@ def _demo(args: argparse.Namespace) -> int:
         rounds=args.rounds,
         seed=DEMO_SEED0 if args.seed is None else args.seed,
         progress=not args.json,
+        workers=args.workers,
     )
     print(summary_table(result["metrics"]))
     st = result["stages"]

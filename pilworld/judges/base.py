@@ -71,6 +71,40 @@ def episode_task(episode: Episode) -> str:
     return str(episode.extra.get("sim_task", ""))
 
 
+def judge_episode(store: EpisodeStore, index: int, judges: Sequence[Judge], rig: RigConfig) -> list[Outcome]:
+    """The verdicts of ``judges`` on episode ``index`` of ``store``, as outcome rows."""
+    ep = store.load(index)
+    ctx = JudgeContext(rig=rig, task=episode_task(ep))
+    outcomes: list[Outcome] = []
+    for j in judges:
+        t0 = time.perf_counter()
+        v = j.judge(ep, ctx)
+        if v.success is None:
+            continue  # a hallucination-only judge: its frame is merged by the caller, see metrics
+        outcomes.append(
+            Outcome(
+                episode_index=index,
+                judge_id=j.judge_id,
+                judge_kind=j.kind,
+                success=v.success,
+                num_frames=ep.length,
+                first_hallucination_frame=v.first_hallucination_frame,
+                judge_seconds=time.perf_counter() - t0,
+            )
+        )
+    return outcomes
+
+
+_STORES: dict[str, EpisodeStore] = {}  # per worker process: opening a store reads its metadata once
+
+
+def _judge_job(job: tuple[str, Sequence[Judge], RigConfig, int]) -> list[Outcome]:
+    root, judges, rig, index = job
+    if root not in _STORES:
+        _STORES[root] = EpisodeStore(root)
+    return judge_episode(_STORES[root], index, judges, rig)
+
+
 def judge_dataset(
     root: str | Path,
     judges: Sequence[Judge],
@@ -78,33 +112,47 @@ def judge_dataset(
     *,
     episodes: Iterable[int] | None = None,
     progress: bool = False,
+    workers: int | None = 1,
+    flush_every: int = 16,
 ) -> list[Outcome]:
-    """Run ``judges`` on the episodes of ``root`` (all by default) and record their verdicts."""
+    """Run ``judges`` on the episodes of ``root`` (all by default) and record their verdicts.
+
+    ``workers`` processes judge episodes in parallel (``None``: one per CPU; judging is pure CPU, an
+    image-only judge takes ~1–2 s per episode). Verdicts are written every ``flush_every`` episodes,
+    so an interrupted pass keeps what it finished and :func:`unjudged_episodes` resumes it.
+    """
+    from pilworld.collection.workers import process_map, worker_count
+
+    if flush_every < 1:
+        raise ValueError(f"flush_every: expected at least 1, got {flush_every}")
     store = EpisodeStore(root)
     indices = list(range(store.num_episodes)) if episodes is None else list(episodes)
+    bad = sorted(i for i in indices if not 0 <= i < store.num_episodes)
+    if bad:
+        raise ValueError(f"episodes: {bad[:10]} not in {root} (it has {store.num_episodes} episodes)")
+    n_workers = worker_count(workers, len(indices))
     outcomes: list[Outcome] = []
-    for i in tqdm(indices, desc="judging", unit="episode", disable=not progress):
-        ep = store.load(i)
-        ctx = JudgeContext(rig=rig, task=episode_task(ep))
-        for j in judges:
-            t0 = time.perf_counter()
-            v = j.judge(ep, ctx)
-            if v.success is None:
-                continue  # a hallucination-only judge: its frame is merged by the caller, see metrics
-            outcomes.append(
-                Outcome(
-                    episode_index=i,
-                    judge_id=j.judge_id,
-                    judge_kind=j.kind,
-                    success=v.success,
-                    num_frames=ep.length,
-                    first_hallucination_frame=v.first_hallucination_frame,
-                    judge_seconds=time.perf_counter() - t0,
-                )
-            )
-    if outcomes:
-        record_outcomes(root, outcomes, num_episodes=store.num_episodes)
-    return outcomes
+    pending: list[Outcome] = []
+    done = 0
+    if n_workers <= 1:
+        results: Iterable[list[Outcome]] = (judge_episode(store, i, judges, rig) for i in indices)
+    else:
+        jobs = [(str(root), judges, rig, i) for i in indices]
+        results = process_map(_judge_job, jobs, n_workers, ordered=False)
+    try:
+        with tqdm(total=len(indices), desc="judging", unit="episode", disable=not progress) as bar:
+            for rows in results:
+                outcomes.extend(rows)
+                pending.extend(rows)
+                done += 1
+                bar.update(1)
+                if pending and done % flush_every == 0:
+                    record_outcomes(root, pending, num_episodes=store.num_episodes)
+                    pending = []
+    finally:  # a judge that raised, or Ctrl-C: what was finished is kept
+        if pending:
+            record_outcomes(root, pending, num_episodes=store.num_episodes)
+    return sorted(outcomes, key=lambda o: (o.episode_index, o.judge_id))
 
 
 def unjudged_episodes(root: str | Path, judge_id: str) -> list[int]:
