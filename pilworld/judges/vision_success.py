@@ -9,25 +9,27 @@ layout seed: it works on an :class:`~pilworld.data.episode.Episode` alone.
 
 How it decides, mirroring what the checker requires (in place, released, stable):
 
-1. **Where things are.** For each of the last frames, the subtask's object (and, for a stacking
-   subtask, the object it must sit on) is located by render-and-compare
+1. **Where things are.** In each of the last ``window`` frames (2.4 s by default) the subtask's object
+   (and, for a stacking subtask, the object it must sit on) is located by render-and-compare
    (:mod:`pilworld.judges.vision_fit`) in every view that sees it: the head camera, and the wrist
    cameras placed by forward kinematics from the stored state, which resolve millimetres when a
    gripper has just let go above the stack.
-2. **Released.** A gripper *touches* the object in a frame when its measured opening says the fingers
-   rest on something and its tool point is at the object. Touched in the last frame: "still held".
-   Only frames after the last touch are evidence of where the object ended up.
-3. **In place.** The latest well-seen estimates after the last touch give the object's position; its
-   offset from the goal (a slot, the stacking mark, or the object below) is compared with the task's
-   tolerance. Bowls tilt on the wall of the bowl below well before their centres are 2 cm apart, which
-   the checker counts as "not nested level"; their thresholds are tighter accordingly (calibrated on
-   the training set, see docs/judges.md).
-4. **Stable.** The object must not still be moving in the last evidence frames.
+2. **Released.** An arm *holds* the object in a frame when its fingers are closed (grip below
+   ``HOLD_MAX`` and not opening) and its wrist view shows the object's colour between the fingertips
+   (around the projected tool point). Held in the last frame: "still held". Only frames after the last
+   hold are evidence of where the object ended up.
+3. **Settled, in place.** From the latest clear estimate back to the last time the object was
+   somewhere else (a fallen tower, a knocked bowl) the object lies where it ended up; the clearest of
+   those views give its position, and its offset from the goal (a slot, the stacking mark, or the
+   object below, located in the same frames) is compared with the task's tolerance. Bowls tilt on the
+   wall of the bowl below well before their centres are 2 cm apart, which the checker counts as "not
+   nested level"; their limits are tighter accordingly (calibrated on the training set, docs/judges.md).
+
+Per-frame labels and fits are computed lazily, latest frame first, and cached per (frame, object).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -38,7 +40,7 @@ from calib.camera_model import CameraModel
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import JudgeKind
 from pilworld.judges.base import JudgeContext, Verdict
-from pilworld.judges.vision_fit import BoxShape, Fit, Pose2D, Shape
+from pilworld.judges.vision_fit import BoxShape, Fit, Pose2D
 from pilworld.judges.vision_fit import fit_pose as _fit_pose
 from pilworld.judges.vision_tasks import SubtaskGoal, TaskSpec, task_spec
 from pilworld.judges.vision_views import Labels, frame_cameras, label_image, object_view
@@ -46,16 +48,19 @@ from pilworld.perception.colour import largest_blob
 from pilworld.types import ARM_LAYOUT, HEAD_VIEW
 
 HOLD_MAX = 0.85  # grip below this: the fingers are closed or resting on an object (measured or commanded)
-IN_HAND_PX = 4.0  # radius of the disc around the projected tool point in a wrist view (at 128 px)
 OPENING = 0.03  # grip increase over one frame that means the fingers are letting go
+IN_HAND_PX = 4.0  # radius of the disc around the projected tool point in a wrist view (at 128 px)
 IN_HAND_SHARE = 0.4  # share of that disc showing the object's colour when it is held
+MIN_EDGE_PX = 4.0  # outline pixels with evidence a view needs to count for an estimate's quality
 MIN_QUALITY = 0.3  # an estimate counts if its best view sees this much of it (see Estimate.quality)
-CLEAR_SHARE = 0.85  # the clear views: quality within this share of the best since the last touch
-MIN_EDGE_PX = 4.0  # outline pixels with evidence in the view that sees the object best
-LATEST = 3  # estimates combined (median) from the latest good frames
-MIN_EXPLAINED = 0.5  # the object below must account for this share of its colour seen anywhere
 SETTLED_QUALITY = 0.5  # estimates clear enough to tell where the object ended up (see verdict)
 MOVED = 0.02  # an estimate this far from the latest one: the object was somewhere else then [m]
+CLEAR_SHARE = 0.85  # the clear views: quality within this share of the best since it settled
+LATEST = 3  # clear views combined (median offset), latest first
+MIN_EXPLAINED = 0.5  # the object below must account for this share of its colour seen anywhere …
+MIN_ELSEWHERE_PX = 8.0  # … unless fewer pixels than this show elsewhere (a sliver next to the top object)
+MOVED_AWAY = 0.03  # its colour's centre in the last frame this far beyond its own radius: it left [m]
+FAR = 1.5  # back-projections farther than this from the rig origin are rays grazing the plane [m]
 # Offset limits [m] where the checker's tolerance is not what decides. A bowl more than ~1.5 cm (medium)
 # or ~1.2 cm (small) off the centre of the bowl below rests on its flaring wall and tilts past the
 # checker's 0.25 rad ("not nested level"), and the tilted rim the camera sees sits closer to the centre
@@ -76,12 +81,6 @@ class Estimate:
         """How clearly the best view shows it: outline share on evidence pixels × share of it in colour."""
         views = [v for v in self.fit.views if v.edge_seen >= MIN_EDGE_PX]
         return max((v.edge_visible_fraction * v.match_fraction for v in views), default=0.0)
-
-
-def _radius(shape: Shape) -> float:
-    if isinstance(shape, BoxShape):
-        return shape.edge / math.sqrt(2.0)
-    return shape.top_radius
 
 
 class VisionSuccessJudge:
@@ -149,8 +148,7 @@ class _EpisodeJudgement:
         cams = frame_cameras(self.rig, self.state[t], self.views)
         result: Estimate | None = None
         starts: list[Pose2D] = []
-        p = self.first_guess(t, name, z + obj.shape.height / 2, cams)
-        if p is not None:
+        for p in self.first_guesses(t, name, z + obj.shape.height / 2, cams):
             starts.append(Pose2D(float(p[0]), float(p[1]), z))
         if near is not None:
             # Mostly (or wholly) hidden under the object on top, what shows of it may be a sliver whose
@@ -167,19 +165,19 @@ class _EpisodeJudgement:
         self._fits[key] = result
         return result
 
-    def first_guess(self, t: int, name: str, z: float, cams: dict[str, CameraModel]) -> NDArray[np.float64] | None:
-        """Where object ``name`` roughly is in frame ``t``: its largest blob in the head view (else in the
-        wrist view that shows most of it), back-projected onto the plane ``z``."""
-        wrists = [v for v in self.views if v != HEAD_VIEW]
-        order = [HEAD_VIEW, *sorted(wrists, key=lambda v: -int(self.labels(t, v).masks[name].sum()))]
-        for view in order:
+    def first_guesses(self, t: int, name: str, z: float, cams: dict[str, CameraModel]) -> list[NDArray[np.float64]]:
+        """Where object ``name`` roughly is in frame ``t``: its largest blob in each view that shows it,
+        back-projected onto the plane ``z`` (a sliver peeking out beside a gripper in the head view can be
+        far from where a wrist view sees the whole object)."""
+        out = []
+        for view in self.views:
             blob = largest_blob(self.labels(t, view).masks[name])
             if blob is None:
                 continue
             pt, ok = cams[view].backproject_to_plane(blob.centroid_uv, z)
-            if bool(ok):
-                return np.asarray(pt[:2], dtype=np.float64)
-        return None
+            if bool(ok) and float(np.hypot(pt[0], pt[1])) < FAR:
+                out.append(np.asarray(pt[:2], dtype=np.float64))
+        return out
 
     def holding(self, t: int, name: str) -> str | None:
         """The arm holding object ``name`` in frame ``t``: fingers closed on something, and its wrist
@@ -214,24 +212,21 @@ class _EpisodeJudgement:
 
     def verdict(self) -> Verdict:
         goal = self.goal
-        last_touch = -1
-        holder: str | None = None
         evidence: list[Estimate] = []
         for t in range(self.T - 1, self.first - 1, -1):  # latest first, back to the last time it was held
-            side = self.holding(t, goal.target)
-            if side is not None:
-                last_touch, holder = t, side
+            holder = self.holding(t, goal.target)
+            if holder is not None:
+                if t == self.T - 1:
+                    return Verdict(success=False, reason=f"{goal.target} is still held by the {holder} gripper")
                 break
             est = self.estimate(t, goal.target, goal.target_z, goal.above)
             if est is not None:
                 evidence.append(est)
-        if last_touch == self.T - 1:
-            return Verdict(success=False, reason=f"{goal.target} is still held by the {holder} gripper")
         seen = [e for e in evidence if e.quality >= SETTLED_QUALITY] or [
             e for e in evidence if e.quality >= MIN_QUALITY
         ]
         if not seen:
-            return Verdict(success=False, reason=f"{goal.target} is not seen clearly after it was last touched")
+            return Verdict(success=False, reason=f"{goal.target} is not seen clearly since it was last held")
         # Where it ended up: the views since it last moved, back from the latest one that shows it. Of
         # those, the clearest (an arm passing over an object hides part of it and skews the estimate).
         settled = [seen[0]]
@@ -239,6 +234,9 @@ class _EpisodeJudgement:
             if float(np.hypot(*(e.fit.pose.xy - seen[0].fit.pose.xy))) > MOVED:
                 break
             settled.append(e)
+        moved = self.moved_away(seen[0])
+        if moved is not None:
+            return Verdict(success=False, reason=moved)
         best = max(e.quality for e in settled)
         clear = [e for e in settled if e.quality >= CLEAR_SHARE * best][:LATEST]
         offsets = []
@@ -259,6 +257,30 @@ class _EpisodeJudgement:
                 reason=f"{goal.target} is {off * 100:.1f} cm from {where} (limit {limit * 100:.1f}; {at})",
             )
         return Verdict(success=True, reason=f"{goal.target} at {where}, {off * 100:.1f} cm off ({at})")
+
+    def moved_away(self, latest: Estimate) -> str | None:
+        """Why the object is no longer where ``latest`` saw it, if the last frame shows it elsewhere.
+
+        Frames after ``latest`` gave no clear estimate at the goal's height. That is usually an arm
+        hiding part of the object; but an object that fell off the stack, or is back on the table,
+        also fits badly up there. Its colour in the last frame, far from ``latest`` in every view
+        that shows it, tells the two apart.
+        """
+        t = self.T - 1
+        if latest.frame >= t:
+            return None
+        goal = self.goal
+        obj = self.spec.object(goal.target)
+        cams = frame_cameras(self.rig, self.state[t], self.views)
+        guesses = self.first_guesses(t, goal.target, goal.target_z + obj.shape.height / 2, cams)
+        if not guesses:
+            return None
+        gap = min(float(np.hypot(*(g - latest.fit.pose.xy))) for g in guesses)
+        # A partly hidden object's colour centre is off its true centre by up to its radius.
+        radius = obj.shape.edge / np.sqrt(2.0) if isinstance(obj.shape, BoxShape) else obj.shape.top_radius
+        if gap <= radius + MOVED_AWAY:
+            return None
+        return f"{goal.target} moved {gap * 100:.0f} cm away after frame {latest.frame}"
 
     def where(self) -> str:
         goal = self.goal
@@ -282,7 +304,8 @@ class _EpisodeJudgement:
             # hidden elsewhere by an arm. Where it was last seen tells which.
             seen = self.last_sighting(goal.reference, goal.reference_z, hidden, before=top.frame)
             return est.fit.pose.xy if seen is None else seen.fit.pose.xy
-        if est.fit.explained_share < MIN_EXPLAINED:
+        elsewhere = sum(v.colour_px - v.matched for v in est.fit.views)
+        if est.fit.explained_share < MIN_EXPLAINED and elsewhere >= MIN_ELSEWHERE_PX:
             return None  # it shows elsewhere (say, in a gripper), not under the object on top
         return est.fit.pose.xy
 

@@ -153,10 +153,9 @@ def test_reads_no_privileged_state(
 
     for name in ("object_poses", "task_state", "check_subtask", "held_by", "state", "render", "observe"):
         monkeypatch.setattr(SimRobot, name, forbidden)
-    for task, episode, success, _ in episodes:
+    for _, episode, success, _ in episodes:
         bare = replace(episode, extra={}, seed=0, checkpoint="")
-        assert _judge(bare, rig, task).success is success
-        assert _judge(bare, rig, "").success is success  # the task found from the instruction
+        assert _judge(bare, rig, "").success is success  # the task known from the instruction alone
 
 
 def test_commanded_state_as_in_the_imagined_branch(
@@ -194,19 +193,18 @@ def test_bench_on_a_collected_store(tmp_path: Path, rig: RigConfig) -> None:
         root,
         rig_path=str(SIM_RIG),
         tasks=["stack_blocks"],
-        checkpoints=["scripted_step_30k", "scripted_step_01k"],
+        checkpoints=["scripted_step_30k"],
         episodes=1,
         seed0=7,
         workers=1,
         progress=False,
     )
     report = run_judge_bench(root, rig)
-    assert report["n"] == 4
+    assert report["n"] == 2  # the run's two subtasks
     assert set(report["per_task"]) == {"stack_blocks"}
     confusion = report["per_task"]["stack_blocks"]["confusion"]
-    assert sum(confusion.values()) == 4
-    assert report["agreement"] == (confusion["tp"] + confusion["tn"]) / 4
-    assert report["agreement"] >= 0.75
+    assert sum(confusion.values()) == 2
+    assert report["agreement"] == (confusion["tp"] + confusion["tn"]) / 2 == 1.0
     assert len(report["disagreements"]) == confusion["fp"] + confusion["fn"]
     assert report["seconds_per_episode"] > 0
     with pytest.raises(ValueError, match="no real-branch"):
