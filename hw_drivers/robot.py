@@ -18,23 +18,10 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from hw_drivers.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotError
 from pilworld.types import Observation, RobotSpec
 
-
-class RobotError(RuntimeError):
-    """Base class of robot errors; ``device`` names the part that failed."""
-
-    def __init__(self, device: str, message: str) -> None:
-        super().__init__(f"{device}: {message}")
-        self.device = device
-
-
-class DeviceNotConnectedError(RobotError):
-    """An operation needed a connected device (call ``connect()`` or use the robot as a context manager)."""
-
-
-class DeviceAlreadyConnectedError(RobotError):
-    """``connect()`` was called twice."""
+__all__ = ["DeviceAlreadyConnectedError", "DeviceNotConnectedError", "Robot", "RobotError"]
 
 
 @runtime_checkable

@@ -1,0 +1,1 @@
+"""Cameras behind one contract: OpenCV ``VideoCapture`` on device indices and stream URLs."""
