@@ -162,6 +162,7 @@ class FakeRobotiqGripper:
     def _hold(self) -> None:
         """Stop the fingers where they are (reset, stop request, major fault)."""
         if self._goal is not None:
+            self._opening = self.backend.gripper_opening(self.side)  # fresh: a stale sample would jerk back
             self.backend.set_gripper_target(self.side, self._opening)
             self._goal = None
 
