@@ -1,0 +1,540 @@
+"""A protocol-level fake UR controller (PolyScope 5.11, e-Series) that the real ``ur_rtde`` client talks to.
+
+Three TCP servers on one loopback address, as on a real controller:
+
+* RTDE (30004): ``>HB`` framed messages (size incl. header, type). Recipes are numbered per connection from 1;
+  outputs stream at the requested frequency from a thread per connection (ur_rtde gives up after 2.5 s of
+  silence). Output types follow ur_rtde's own decode table (``src/robot_state.cpp``), so the byte layout
+  matches what the client unpacks.
+* dashboard (29999): the line protocol, answering the strings ur_rtde compares against.
+* script (30003): accepts the uploaded ``rtde_control`` program and *emulates* it rather than interpreting
+  URScript: a 500 Hz controller thread plays the script's main loop on the RTDE registers
+  (``input_int_register_0`` = command, ``output_int_register_0`` 1 = ready / 2 = done). Emulated: servoJ (11,
+  real-time: processed and ready again), moveJ (1, blocking unless async), servoStop (16), speedStop (15),
+  stopJ/stopL (34/33), setWatchdog (35, action "stop"), triggerProtectiveStop (31), stopScript (255); any
+  other command is acknowledged as done without effect.
+
+The arm is the ``side`` arm of a :class:`~hw_drivers.fakes.backend.RigBackend`: ``actual_q``/``actual_qd`` are
+read from it and servoJ/moveJ targets written to it. Faults (:class:`~hw_drivers.fakes.faults.FaultSwitch`):
+``drop`` (output packets not sent), ``corrupt`` (an output packet with a broken frame: size field 2, shorter
+than the header), ``stall`` (no output, no input processing, no dashboard answers; sockets stay open),
+``protective_stop`` (latched once seen: program stopped, arm held, cleared by dashboard ``unlock protective
+stop``; the fault is consumed), ``emergency_stop`` (while injected; afterwards the arm is powered off until
+``power on`` + ``brake release``), ``disconnect`` (all sockets closed and new connections refused while
+injected).
+
+The ur_rtde constructors hold the GIL, so the client must never run in the process that hosts this fake.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import select
+import socket
+import struct
+import threading
+import time
+from types import TracebackType
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hw_drivers.fakes.backend import RigBackend, check_side
+from hw_drivers.fakes.faults import FaultSwitch
+
+RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT = 30004, 29999, 30003
+CONTROLLER_VERSION = (5, 11, 1, 108318)
+POLYSCOPE_VERSION = "URSoftware 5.11.1.108318 (Mar 22 2021)"
+TICK_S = 0.002  # the controller's 500 Hz cycle ("sync()" in URScript)
+
+# RTDE message types
+MSG_V, MSG_v, MSG_O, MSG_I, MSG_S, MSG_P, MSG_U = 86, 118, 79, 73, 83, 80, 85
+# runtime_state, robot_mode, safety_mode values (ur_rtde's enums)
+STOPPED, PLAYING = 1, 2
+POWER_OFF, IDLE, RUNNING = 3, 5, 7
+SAFETY = {  # name -> (safety_mode, safety_status_bits, dashboard word)
+    "normal": (1, 1 << 0, "NORMAL"),
+    "protective_stop": (3, (1 << 2) | (1 << 10), "PROTECTIVE_STOP"),
+    "emergency_stop": (7, (1 << 6) | (1 << 7) | (1 << 10), "ROBOT_EMERGENCY_STOP"),
+}
+ROBOT_MODE_NAMES = {POWER_OFF: "POWER_OFF", IDLE: "IDLE", RUNNING: "RUNNING"}
+REALTIME_CMDS = {6, 9, 10, 11, 24, 25, 26, 27, 38, 58, 66, 67, 68, 69, 70, 71}  # script: process, then ready
+STOP_CMDS = {15, 16, 33, 34}  # speedStop, servoStop, stopL, stopJ
+
+_FMT = {"VECTOR6D": "6d", "VECTOR3D": "3d", "DOUBLE": "d", "INT32": "i", "UINT32": "I", "UINT64": "Q"}
+_FMT.update({"VECTOR6INT32": "6i", "UINT8": "B", "BOOL": "?"})
+_VEC6 = [
+    "target_q",
+    "target_qd",
+    "target_qdd",
+    "target_current",
+    "target_moment",
+    "actual_q",
+    "actual_qd",
+    "actual_qdd",
+    "actual_current",
+    "actual_moment",
+    "joint_control_output",
+    "actual_TCP_pose",
+    "actual_TCP_speed",
+    "actual_TCP_force",
+    "target_TCP_pose",
+    "target_TCP_speed",
+    "joint_temperatures",
+    "actual_joint_voltage",
+    "ft_raw_wrench",
+    "payload_inertia",
+]
+_SCALAR = [
+    "timestamp",
+    "actual_execution_time",
+    "speed_scaling",
+    "target_speed_fraction",
+    "actual_momentum",
+    "actual_main_voltage",
+    "actual_robot_voltage",
+    "actual_robot_current",
+    "standard_analog_input0",
+    "standard_analog_input1",
+    "standard_analog_output0",
+    "standard_analog_output1",
+    "payload",
+]
+_OUT_TYPES = {n: "VECTOR6D" for n in _VEC6} | {n: "DOUBLE" for n in _SCALAR}
+_OUT_TYPES |= {n: "VECTOR3D" for n in ("actual_tool_accelerometer", "payload_cog", "elbow_position")}
+_OUT_TYPES |= {"robot_mode": "INT32", "safety_mode": "INT32", "joint_mode": "VECTOR6INT32"}
+_OUT_TYPES |= {n: "UINT64" for n in ("actual_digital_input_bits", "actual_digital_output_bits")}
+_OUT_TYPES |= {n: "UINT32" for n in ("runtime_state", "robot_status_bits", "safety_status_bits")}
+_OUT_TYPES |= {n: "UINT32" for n in ("output_bit_registers0_to_31", "output_bit_registers32_to_63")}
+_IN_TYPES = {"external_force_torque": "VECTOR6D", "speed_slider_mask": "UINT32", "speed_slider_fraction": "DOUBLE"}
+
+
+def _register(name: str, prefix: str) -> int | None:
+    """``output_int_register_7`` -> 7 for prefix ``output_int_register_`` (registers 0 … 47), else None."""
+    if name.startswith(prefix) and name[len(prefix) :].isdigit() and int(name[len(prefix) :]) < 48:
+        return int(name[len(prefix) :])
+    return None
+
+
+def _type_of(name: str, direction: str) -> str:
+    for kind, rtde_type in (("int", "INT32"), ("double", "DOUBLE")):
+        if _register(name, f"{direction}_{kind}_register_") is not None:
+            return rtde_type
+    table = _OUT_TYPES if direction == "output" else _IN_TYPES
+    if direction == "input" and name.startswith(("standard_", "configurable_", "tool_")):
+        return "DOUBLE" if "analog_output_" in name and not name.endswith("type") else "UINT8"
+    return table.get(name, "NOT_FOUND")
+
+
+def _frame(msg_type: int, payload: bytes = b"") -> bytes:
+    return struct.pack(">HB", 3 + len(payload), msg_type) + payload
+
+
+class FakeURController:
+    """One fake UR controller on ``host`` (any 127.x.y.z) driving the ``side`` arm of ``backend``."""
+
+    def __init__(
+        self, backend: RigBackend, side: str, host: str = "127.0.0.1", faults: FaultSwitch | None = None
+    ) -> None:
+        self.backend, self.side, self.host = backend, check_side(side), host
+        self.faults = faults if faults is not None else FaultSwitch()
+        self._lock = threading.RLock()
+        self._running = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._servers: list[socket.socket] = []
+        self._clients: set[socket.socket] = set()
+        self._t0 = time.monotonic()
+        self.in_int, self.in_double = [0] * 48, [0.0] * 48
+        self.out_int, self.out_double = [0] * 48, [0.0] * 48
+        self.runtime_state, self.robot_mode, self.safety = STOPPED, RUNNING, "normal"
+        self.servoing = False
+        self._executing = self._blocking = False
+        self._goal: NDArray[np.float64] | None = None  # moveJ goal
+        self._speed = 1.0
+        self._setpoint = np.zeros(6)
+        self._watchdog_s: float | None = None
+        self._last_kick = 0.0
+        self._program: str | None = None
+
+    # -- lifecycle
+
+    def start(self) -> FakeURController:
+        self._running.set()
+        try:
+            for port, serve in ((RTDE_PORT, self._serve_rtde), (DASHBOARD_PORT, self._serve_dashboard)):
+                self._listen(port, serve)
+            self._listen(SCRIPT_PORT, self._serve_script)
+        except OSError:
+            self.stop()
+            raise
+        self._spawn(self._control_loop)
+        return self
+
+    def stop(self) -> None:
+        self._running.clear()
+        with self._lock:
+            clients = list(self._clients)
+        for c in clients:
+            with contextlib.suppress(OSError):
+                c.shutdown(socket.SHUT_RDWR)  # wakes a blocked read even while a makefile holds the socket
+        for s in [*self._servers, *clients]:
+            with contextlib.suppress(OSError):
+                s.close()
+        for t in self._threads:
+            if t is not threading.current_thread():
+                t.join(2.0)
+        self._servers.clear()
+        self._threads.clear()
+
+    def __enter__(self) -> FakeURController:
+        return self.start()
+
+    def __exit__(self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
+        self.stop()
+
+    @property
+    def program_running(self) -> bool:
+        return self.runtime_state == PLAYING
+
+    def _spawn(self, fn: object, *args: object) -> None:
+        t = threading.Thread(target=fn, args=args, daemon=True, name=f"fake-ur-{self.host}")  # type: ignore[arg-type]
+        self._threads.append(t)
+        t.start()
+
+    def _listen(self, port: int, serve: object) -> None:
+        srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        srv.bind((self.host, port))
+        srv.listen(8)
+        srv.settimeout(0.1)
+        self._servers.append(srv)
+        self._spawn(self._accept, srv, serve)
+
+    def _accept(self, srv: socket.socket, serve: object) -> None:
+        while self._running.is_set():
+            try:
+                conn, _ = srv.accept()
+            except (TimeoutError, OSError):
+                continue
+            if self.faults.active("disconnect"):
+                conn.close()
+                continue
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            with self._lock:
+                self._clients.add(conn)
+            self._spawn(self._client, conn, serve)
+
+    def _client(self, conn: socket.socket, serve: object) -> None:
+        try:
+            serve(conn)  # type: ignore[operator]
+        except (OSError, ValueError, struct.error):
+            pass  # the peer went away, or a socket closed by stop()/disconnect
+        finally:
+            with self._lock:
+                self._clients.discard(conn)
+            conn.close()
+
+    # -- the controller cycle and the emulated rtde_control script
+
+    def _control_loop(self) -> None:
+        next_tick = time.monotonic()
+        while self._running.is_set():
+            next_tick += TICK_S
+            time.sleep(max(0.0, next_tick - time.monotonic()))
+            if time.monotonic() - next_tick > 0.1:
+                next_tick = time.monotonic()  # fell far behind (a loaded machine): do not burst
+            if self.faults.active("disconnect"):
+                with self._lock:
+                    clients = list(self._clients)
+                for c in clients:
+                    with contextlib.suppress(OSError):
+                        c.shutdown(socket.SHUT_RDWR)
+            if self.faults.active("stall"):
+                continue
+            with self._lock:
+                self._safety_tick()
+                if self.runtime_state == PLAYING:
+                    self._script_tick()
+
+    def _safety_tick(self) -> None:
+        if self.faults.active("emergency_stop"):
+            if self.safety != "emergency_stop":
+                self.safety, self.robot_mode = "emergency_stop", POWER_OFF
+                self._halt()
+        elif self.safety == "emergency_stop":
+            self.safety = "normal"  # released on the robot; still powered off
+        if self.faults.active("protective_stop"):
+            self.faults.clear("protective_stop")  # latched here; the dashboard unlock clears it
+            if self.safety == "normal":
+                self.safety = "protective_stop"
+                self._halt()
+        if self._watchdog_s is not None and time.monotonic() - self._last_kick > self._watchdog_s:
+            self._halt()  # rtde_set_watchdog(..., "stop"): no input update in time stops the program
+
+    def _halt(self) -> None:
+        """Stop the program and hold the arm where it is."""
+        self.runtime_state, self.servoing, self._blocking, self._goal = STOPPED, False, False, None
+        self._watchdog_s = None
+        self._hold()
+
+    def _hold(self) -> None:
+        self._setpoint = self.backend.arm_q(self.side)
+        self.backend.set_arm_target(self.side, self._setpoint)
+
+    def _script_tick(self) -> None:
+        if self._goal is not None:
+            self._step_move()
+        if self._blocking:
+            return  # a blocking movej: the script does not read commands until it returns
+        cmd = self.in_int[0]
+        if cmd in REALTIME_CMDS:
+            self._process(cmd)
+            self.out_int[0] = 1
+        elif cmd == 0:
+            self._executing = False
+            self.out_int[0] = 1
+        elif not self._executing:
+            self._executing = True
+            self._process(cmd)
+            if cmd != 255 and not self._blocking:
+                self.out_int[0] = 2
+
+    def _process(self, cmd: int) -> None:
+        q = np.array(self.in_double[:6])
+        if cmd == 11:  # servoJ: the servo thread tracks the latest target
+            self.servoing, self._goal = True, None
+            self._setpoint = q
+            self.backend.set_arm_target(self.side, q)
+        elif cmd == 1:  # moveJ(q, speed, acceleration, async)
+            self.servoing, self._goal = False, q
+            self._speed = max(1e-3, self.in_double[6])
+            self._setpoint = self.backend.arm_q(self.side)
+            self._blocking = self.in_int[1] == 0
+        elif cmd in STOP_CMDS:
+            self.servoing, self._goal = False, None
+            self._hold()
+        elif cmd == 35:  # setWatchdog(min_frequency)
+            self._watchdog_s = 1.0 / max(1e-3, self.in_double[0])
+            self._last_kick = time.monotonic()
+        elif cmd == 31:  # triggerProtectiveStop
+            self.safety = "protective_stop"
+            self._halt()
+        elif cmd == 255:  # stopScript
+            self._halt()
+
+    def _step_move(self) -> None:
+        assert self._goal is not None
+        delta = self._goal - self._setpoint
+        step = self._speed * TICK_S
+        largest = float(np.max(np.abs(delta)))
+        self._setpoint = self._goal.copy() if largest <= step else self._setpoint + delta * (step / largest)
+        self.backend.set_arm_target(self.side, self._setpoint)
+        if largest <= step and np.max(np.abs(self.backend.arm_q(self.side) - self._goal)) < 1e-3:
+            self._goal = None
+            if self._blocking:
+                self._blocking = False
+                self.out_int[0] = 2
+
+    def _start_program(self, name: str) -> None:
+        with self._lock:
+            if name != "rtde_control" or self.safety != "normal" or self.robot_mode != RUNNING:
+                return  # only ur_rtde's control script is emulated; a stopped robot cannot run programs
+            self._program = name
+            self.runtime_state = PLAYING
+            self._executing = self._blocking = self.servoing = False
+            self._goal, self._watchdog_s = None, None
+            self._hold()
+            self.out_int[0] = 1  # signal_ready()
+
+    # -- RTDE
+
+    def _serve_rtde(self, conn: socket.socket) -> None:
+        outputs: list[tuple[str, str]] = []
+        inputs: dict[int, list[tuple[str, str]]] = {}
+        period, started, next_send = 0.002, False, 0.0
+        buf = b""
+        while self._running.is_set():
+            wait = max(0.0, next_send - time.monotonic()) if started else 0.1
+            if select.select([conn], [], [], wait)[0]:
+                data = conn.recv(65536)
+                if not data:
+                    return
+                buf += data
+                while len(buf) >= 3:
+                    size, kind = struct.unpack_from(">HB", buf)
+                    if len(buf) < size:
+                        break
+                    payload, buf = buf[3:size], buf[size:]
+                    if self.faults.active("stall"):
+                        continue
+                    if kind == MSG_U:
+                        self._on_input(payload, inputs)
+                    elif kind == MSG_O:
+                        period = 1.0 / max(1.0, struct.unpack_from(">d", payload)[0])
+                        names = [n for n in payload[8:].decode().split(",") if n]
+                        outputs = [(n, _type_of(n, "output")) for n in names]
+                        ok = all(t != "NOT_FOUND" for _, t in outputs)
+                        conn.sendall(_frame(MSG_O, bytes([1 if ok else 0]) + ",".join(t for _, t in outputs).encode()))
+                    elif kind == MSG_I:
+                        names = [n for n in payload.decode().split(",") if n]
+                        types = [(n, _type_of(n, "input")) for n in names]
+                        rid = len(inputs) + 1 if all(t != "NOT_FOUND" for _, t in types) else 0
+                        if rid:
+                            inputs[rid] = types
+                        conn.sendall(_frame(MSG_I, bytes([rid]) + ",".join(t for _, t in types).encode()))
+                    elif kind in (MSG_S, MSG_P):
+                        started = kind == MSG_S and bool(outputs)
+                        next_send = time.monotonic()
+                        conn.sendall(_frame(kind, b"\x01"))
+                    elif kind == MSG_V:
+                        conn.sendall(_frame(MSG_V, b"\x01"))
+                    elif kind == MSG_v:
+                        conn.sendall(_frame(MSG_v, struct.pack(">IIII", *CONTROLLER_VERSION)))
+            if started and time.monotonic() >= next_send:
+                next_send = max(next_send + period, time.monotonic() - period)
+                if self.faults.active("stall") or self.faults.active("drop"):
+                    continue
+                if self.faults.active("corrupt"):
+                    conn.sendall(struct.pack(">HB", 2, MSG_U) + b"\x01" * 16)  # size < header: a broken frame
+                    continue
+                conn.sendall(self._output_packet(outputs))
+
+    def _on_input(self, payload: bytes, inputs: dict[int, list[tuple[str, str]]]) -> None:
+        recipe = inputs.get(payload[0])
+        if recipe is None:
+            return
+        values = struct.unpack_from(">" + "".join(_FMT[t] for _, t in recipe), payload, 1)
+        with self._lock:
+            i = 0
+            for name, rtde_type in recipe:
+                n = int(_FMT[rtde_type][0]) if _FMT[rtde_type][0].isdigit() else 1
+                if (reg := _register(name, "input_int_register_")) is not None:
+                    self.in_int[reg] = int(values[i])
+                    if reg == 0:
+                        self._last_kick = time.monotonic()
+                elif (reg := _register(name, "input_double_register_")) is not None:
+                    self.in_double[reg] = float(values[i])
+                i += n
+
+    def _output_packet(self, outputs: list[tuple[str, str]]) -> bytes:
+        q, qd = self.backend.arm_q(self.side), self.backend.arm_qd(self.side)
+        with self._lock:
+            safety_mode, safety_bits, _ = SAFETY[self.safety]
+            powered = self.robot_mode in (IDLE, RUNNING)
+            scalars: dict[str, float | int] = {
+                "timestamp": time.monotonic() - self._t0,
+                "robot_mode": self.robot_mode,
+                "safety_mode": safety_mode,
+                "safety_status_bits": safety_bits,
+                "runtime_state": self.runtime_state,
+                "robot_status_bits": int(powered) | (int(self.runtime_state == PLAYING) << 1),
+                "speed_scaling": 1.0,
+                "target_speed_fraction": 1.0,
+            }
+            flat: list[float | int] = []
+            for name, rtde_type in outputs:
+                if name in ("actual_q", "target_q"):
+                    flat.extend(q.tolist())
+                elif name in ("actual_qd", "target_qd"):
+                    flat.extend(qd.tolist())
+                elif name == "joint_mode":
+                    flat.extend([253] * 6)  # JOINT_RUNNING_MODE
+                elif (reg := _register(name, "output_int_register_")) is not None:
+                    flat.append(self.out_int[reg])
+                elif (reg := _register(name, "output_double_register_")) is not None:
+                    flat.append(self.out_double[reg])
+                else:
+                    fmt = _FMT[rtde_type]
+                    count = int(fmt[0]) if fmt[0].isdigit() else 1
+                    flat.extend([scalars.get(name, 0)] * count)
+        fmt = ">B" + "".join(_FMT[t] for _, t in outputs)
+        return _frame(MSG_U, struct.pack(fmt, 1, *flat))
+
+    # -- dashboard
+
+    def _serve_dashboard(self, conn: socket.socket) -> None:
+        conn.sendall(b"Connected: Universal Robots Dashboard Server\n")
+        reader = conn.makefile("rb")
+        for raw in reader:
+            if not self._running.is_set():
+                return
+            if self.faults.active("stall"):
+                continue
+            line = raw.decode(errors="replace").strip()
+            reply = self._dashboard(line)
+            conn.sendall((reply + "\n").encode())
+            if line == "quit":
+                return
+
+    def _dashboard(self, line: str) -> str:
+        cmd = line.lower()
+        with self._lock:
+            program = self._program or "<unnamed>"
+            if cmd == "stop":
+                self._halt()
+                return "Stopped"
+            if cmd == "play":
+                if self._program is None:
+                    return "Failed to execute: play"
+                self._start_program(self._program)
+                return "Starting program" if self.runtime_state == PLAYING else "Failed to execute: play"
+            if cmd == "pause":
+                self._halt()
+                return "Pausing program"
+            if cmd == "unlock protective stop":
+                if self.safety != "protective_stop":
+                    return "Cannot unlock protective stop: the robot is not in a protective stop"
+                self.safety = "normal"
+                return "Protective stop releasing"
+            if cmd in ("power on", "power off", "brake release"):
+                if self.safety == "emergency_stop":
+                    return f"Cannot {cmd}: emergency stop active"
+                self.robot_mode = {"power on": IDLE, "power off": POWER_OFF, "brake release": RUNNING}[cmd]
+                return {"power on": "Powering on", "power off": "Powering off", "brake release": "Brake releasing"}[cmd]
+            answers = {
+                "robotmode": f"Robotmode: {ROBOT_MODE_NAMES[self.robot_mode]}",
+                "safetystatus": f"Safetystatus: {SAFETY[self.safety][2]}",
+                "safetymode": f"Safetymode: {SAFETY[self.safety][2]}",
+                "programstate": f"{'PLAYING' if self.runtime_state == PLAYING else 'STOPPED'} {program}",
+                "running": f"Program running: {str(self.runtime_state == PLAYING).lower()}",
+                "polyscopeversion": POLYSCOPE_VERSION,
+                "get serial number": "20185500000",
+                "is in remote control": "true",
+                "get robot model": "UR5",
+                "get loaded program": f"Loaded program: {program}",
+                "isprogramsaved": f"true {program}",
+                "close popup": "closing popup",
+                "close safety popup": "closing safety popup",
+                "restart safety": "Restarting safety",
+                "quit": "Disconnected",
+                "shutdown": "Shutting down",
+            }
+        if cmd in answers:
+            return answers[cmd]
+        if cmd.startswith("load "):
+            return f"Loading program: {line[5:]}"
+        if cmd.startswith(("popup ", "addtolog ", "setuserrole ")):
+            return "ok"
+        return f"could not understand: '{line}'"
+
+    # -- primary/secondary script interface
+
+    def _serve_script(self, conn: socket.socket) -> None:
+        """Collect top-level ``def name(): … end`` programs; a complete one starts (and replaces) the program."""
+        pending = b""
+        name: str | None = None
+        while self._running.is_set():
+            if not select.select([conn], [], [], 0.1)[0]:
+                continue
+            data = conn.recv(65536)
+            if not data:
+                return
+            pending += data
+            *lines, pending = pending.split(b"\n")
+            for raw in lines:
+                line = raw.decode(errors="replace").rstrip()
+                if line.startswith("def ") and line.endswith("():"):
+                    name = line[4:-3].strip()
+                elif line == "end" and name is not None:
+                    self._start_program(name)
+                    name = None
