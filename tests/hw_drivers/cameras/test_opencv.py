@@ -13,7 +13,9 @@ import contextlib
 import socket
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -270,3 +272,24 @@ def test_bad_arguments() -> None:
         OpenCVCamera("c", 0, connect_timeout=0)
     with pytest.raises(ValueError, match="resize_to"):
         OpenCVCamera("c", 0, resize_to=(0, 10))
+
+
+def test_file_source_ends_with_connection_error(tmp_path: Path) -> None:
+    # A non-URL source goes through OpenCV's default backend (as a device index would); a finite file
+    # is a stream that ends, at decode speed, so the end may already be seen inside connect().
+    path = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 10.0, (32, 24))
+    for _ in range(5):
+        writer.write(np.zeros((24, 32, 3), np.uint8))
+    writer.release()
+    cam = OpenCVCamera("clip", str(path), connect_timeout=2.0)
+    try:
+        cam.connect()
+        assert wait_for(cam, DeviceConnectionError, within=1.0) < 1.0
+    except DeviceConnectionError as e:
+        assert "ended" in str(e)
+    finally:
+        cam.disconnect()
+    missing = OpenCVCamera("clip", str(tmp_path / "missing.avi"))
+    with pytest.raises(DeviceConnectionError, match="could not open"):
+        missing.connect()
