@@ -159,7 +159,9 @@ class OpenCVCamera:
         with self._lock:
             frame, error = self._latest, self._error
         if error is not None:
-            raise error
+            # The same stored error is raised on every call: drop the previous traceback so it does
+            # not grow by one entry per call in a polling loop.
+            raise error.with_traceback(None)
         if frame is None:  # unreachable after a successful connect(); kept for the type checker
             raise StaleObservationError(self._name, "no frame yet")
         age = time.monotonic() - frame.timestamp
