@@ -95,6 +95,10 @@ class _Reading:
     t: float  # time.monotonic() when the answer arrived
 
 
+class _StopRequestedError(Exception):
+    """disconnect() asked the I/O thread to stop in the middle of retrying."""
+
+
 def _signed(value: int, bits: int) -> int:
     return value - (1 << bits) if value >= 1 << (bits - 1) else value
 
@@ -189,6 +193,7 @@ class DynamixelGripper:
         if self._connected:
             raise DeviceAlreadyConnectedError(self._name, "already connected")
         self._error, self._reading = None, None
+        self._stop.clear()
         self._port = _Port(self._port_name, self._timeout * 1000.0)
         try:
             # setBaudRate opens the port at that rate (openPort would first open it at the SDK's 1 Mbaud)
@@ -202,7 +207,6 @@ class DynamixelGripper:
         except BaseException:
             self._close_port()
             raise
-        self._stop.clear()
         self._connected = True
         self._thread = threading.Thread(target=self._run, name=f"dynamixel-{self._name}", daemon=True)
         self._thread.start()
@@ -337,10 +341,13 @@ class DynamixelGripper:
         while not self._stop.is_set():
             try:
                 self._cycle(check_health=cycle % health_every == 0)
-            except RobotError as e:
-                log.error("%s", e)  # the error names the device
+            except _StopRequestedError:
+                return
+            except Exception as e:  # stored, never lost with the thread: the next call raises it
+                error = e if isinstance(e, RobotError) else DeviceConnectionError(self._name, f"I/O failed: {e!r}")
+                log.error("%s", error)  # the error names the device
                 with self._lock:
-                    self._error = e
+                    self._error = error
                 return
             cycle += 1
             next_tick += self._period
@@ -406,6 +413,8 @@ class DynamixelGripper:
         """``fn`` returns the SDK's (value, comm result, status error byte); retried on timeout/corruption."""
         result = COMM_SUCCESS
         for attempt in range(self._retries + 1):
+            if attempt and self._stop.is_set():
+                raise _StopRequestedError  # disconnect() is waiting: no more retries
             try:
                 value, result, error = fn()
             except IO_ERRORS as e:
