@@ -224,6 +224,10 @@ class SimRobot:
         self._require()
         return float(self._data.time)
 
+    def clock(self) -> float:
+        """The robot's clock for the safety filter: simulated seconds, the units of ``observe().timestamp``."""
+        return self.time
+
     def command(self) -> NDArray[np.float32]:
         """The last applied command (the target the servos track)."""
         return self._target.astype(np.float32)

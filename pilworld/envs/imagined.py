@@ -21,9 +21,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from hw_drivers.safety import SafetyFilter
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs.base import EnvError, as_chunk
-from pilworld.envs.robot import LimitFilter
 from pilworld.types import ActionChunk, ChunkSpec, Observation, Segment, Start
 from pilworld.world_model.base import PredictRequest, WorldModel
 
@@ -74,7 +74,7 @@ class ImaginedEnv:
         control_rate_hz: float = 30.0,
         seed: int = 0,
         steps: int | None = None,
-        safety: LimitFilter | None = None,
+        safety: SafetyFilter | None = None,
     ) -> None:
         self.model = model
         self.safety = safety

@@ -17,41 +17,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hw_drivers.robot import Robot
+from hw_drivers.safety import SafetyFilter, SafetyLimits
 from pilworld.envs.base import EnvError, as_chunk
-from pilworld.types import ActionChunk, ChunkSpec, Observation, RobotSpec, Segment, Start
+from pilworld.types import ActionChunk, ChunkSpec, Observation, Segment, Start
 
 
-class LimitFilter:
-    """The minimal safety filter: refuse non-finite commands, clip to joint limits and joint speed.
-
-    The speed limit is relative to the previous filtered command (the robot's measured state at reset),
-    so a chunk that jumps is slowed down instead of slamming the arm. Issue #8 adds workspace and
-    collision checks behind the same ``__call__`` / ``reset`` interface.
-    """
-
-    def __init__(self, spec: RobotSpec) -> None:
-        self.spec = spec
-        self._lower = spec.lower_array.astype(np.float64)
-        self._upper = spec.upper_array.astype(np.float64)
-        self._step = (
-            np.asarray(spec.max_joint_speed, dtype=np.float64) / spec.control_rate_hz if spec.max_joint_speed else None
-        )
-        self._last: NDArray[np.float64] | None = None
-
-    def reset(self, state: NDArray[np.floating]) -> None:
-        self._last = np.asarray(state, dtype=np.float64).copy()
-
-    def __call__(self, action: NDArray[np.floating]) -> NDArray[np.float32]:
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (self.spec.dof,):
-            raise ValueError(f"action: expected shape ({self.spec.dof},), got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action: must be finite, got {a.tolist()}")
-        a = np.clip(a, self._lower, self._upper)
-        if self._step is not None and self._last is not None:
-            a = np.clip(a, self._last - self._step, self._last + self._step)
-        self._last = a
-        return a.astype(np.float32)
+def robot_safety_filter(robot: Robot, limits: SafetyLimits | None = None) -> SafetyFilter:
+    """The safety filter for ``robot``: its clock (when it has one) and its ``stop()`` on a refusal."""
+    clock = getattr(robot, "clock", None)
+    stop = getattr(robot, "stop", None)
+    return SafetyFilter(
+        robot.spec,
+        limits,
+        clock=clock if callable(clock) else None,
+        on_violation=stop if callable(stop) else None,
+        device=f"safety filter ({type(robot).__name__})",
+    )
 
 
 class RobotEnv:
@@ -62,15 +43,13 @@ class RobotEnv:
         robot: Robot,
         spec: ChunkSpec | None = None,
         *,
-        safety: LimitFilter | None = None,
+        safety: SafetyFilter | None = None,
         pace: bool = True,
-        start_tolerance: float = 0.02,
     ) -> None:
         self.robot = robot
         self._spec = spec or ChunkSpec()
-        self.safety = safety or LimitFilter(robot.spec)
+        self.safety = safety or robot_safety_filter(robot)
         self.pace = pace
-        self.start_tolerance = start_tolerance
         self._obs: Observation | None = None
 
     @property
@@ -82,23 +61,13 @@ class RobotEnv:
         return self._spec
 
     def reset(self, start: Start) -> Observation:
-        """Check the robot stands at ``start`` (within ``start_tolerance`` rad) and return the start itself.
+        """Check the robot stands at ``start`` (the safety filter's start-pose gate) and return the start itself.
 
         The start observation is returned unchanged, not re-observed, so both branches hand the policy
         byte-identical first images.
         """
         state = np.asarray(self.robot.observe().state, dtype=np.float64)
-        want = np.asarray(start.observation.state, dtype=np.float64)
-        if state.shape != want.shape:
-            raise EnvError(f"robot state has shape {state.shape}, the start's has {want.shape}")
-        err = np.abs(state - want)
-        if float(err.max()) > self.start_tolerance:
-            j = int(err.argmax())
-            raise EnvError(
-                f"the robot is not at the start: {self.robot.spec.joint_names[j]} differs by {err[j]:.4f} "
-                f"(tolerance {self.start_tolerance}); move it to the start before running the branch"
-            )
-        self.safety.reset(state)
+        self.safety.check_start(state, np.asarray(start.observation.state, dtype=np.float64))
         self._obs = start.observation
         return start.observation
 
@@ -107,6 +76,7 @@ class RobotEnv:
             raise EnvError("step() before reset(): call reset(start) first")
         spec = self._spec
         c = as_chunk(chunk, spec, self.robot.spec.dof)
+        self.safety.check_observation(self._obs.timestamp)
         period = 1.0 / self.robot.spec.control_rate_hz
         sent: list[NDArray[np.float32]] = []
         frames: list[Observation] = []

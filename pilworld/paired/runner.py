@@ -36,7 +36,7 @@ from pilworld.data.atomic import write_json
 from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
-from pilworld.envs import ImaginedEnv, LimitFilter, RobotEnv
+from pilworld.envs import ImaginedEnv, RobotEnv, SafetyFilter
 from pilworld.paired.episodes import rollout_episode
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
@@ -264,7 +264,7 @@ def paired_run(
                         control_rate_hz=rig.control_rate_hz,
                         seed=pair.seed,
                         steps=cfg.steps,
-                        safety=LimitFilter(robot.spec),  # the robot's filter: same commands in both branches
+                        safety=SafetyFilter(robot.spec),  # the robot's filter: same commands in both branches
                     )
                 else:
                     env = RobotEnv(robot, cfg.spec, pace=False)  # the simulator runs faster than real time

@@ -171,18 +171,18 @@ def test_frozen_model_reproduces_the_start(gamma: ControlVideo) -> None:
 def test_safety_filter_shapes_the_commands_like_on_the_robot(gamma: ControlVideo) -> None:
     """A chunk that jumps is slowed down by the robot's filter; the imagined branch executes the same commands."""
     from hw_drivers.sim.robot import SimRobot
-    from pilworld.envs import LimitFilter
+    from pilworld.envs import SafetyFilter
 
     with SimRobot(SIM, "sort_cubes") as robot:
         spec = robot.spec
     model = SpyModel()
-    env = ImaginedEnv(model, gamma, SPEC, safety=LimitFilter(spec))
+    env = ImaginedEnv(model, gamma, SPEC, safety=SafetyFilter(spec))
     start = _start()
     env.reset(start)
-    jump = np.tile(start.observation.state + np.float32(0.5), (SPEC.horizon, 1))
+    jump = np.tile(start.observation.state + np.float32(0.2), (SPEC.horizon, 1))
     jump[:, [6, 13]] = 1.0
     seg = env.step(jump)
-    reference = LimitFilter(spec)
+    reference = SafetyFilter(spec)
     reference.reset(start.observation.state)
     expected = np.stack([reference(a) for a in jump[: SPEC.executed_steps]])
     np.testing.assert_array_equal(seg.actions, expected)

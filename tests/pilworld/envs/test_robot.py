@@ -7,10 +7,11 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
+from hw_drivers.errors import SafetyViolationError, StaleObservationError
 from hw_drivers.sim.robot import SimRobot
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
-from pilworld.envs import EnvError, ImaginedEnv, LimitFilter, RobotEnv
+from pilworld.envs import EnvError, ImaginedEnv, RobotEnv
 from pilworld.policies.base import CallablePolicy, PolicyError
 from pilworld.policies.scripted import ScriptedPolicy
 from pilworld.rollout import closed_loop
@@ -28,17 +29,31 @@ def robot() -> Iterator[SimRobot]:
         yield r
 
 
-def test_limit_filter_clips_limits_and_speed_and_refuses_nan(robot: SimRobot) -> None:
-    spec = robot.spec
-    f = LimitFilter(spec)
-    f.reset(np.zeros(14, np.float32))
-    out = f(np.full(14, 100.0))
-    assert np.all(out <= spec.upper_array) and np.all(out >= spec.lower_array)
-    assert np.all(np.abs(out) <= np.pi / 30 + 1e-6)  # one control step at the joints' max speed
-    with pytest.raises(ValueError, match="finite"):
-        f(np.full(14, np.nan))
-    with pytest.raises(ValueError, match="shape"):
-        f(np.zeros(7))
+def test_robot_env_filters_every_command(robot: SimRobot) -> None:
+    """The sim robot's filter: its clock for staleness, clipping to the speed cap, refusing NaN and jumps."""
+    start = robot.reset(seed=0, subtask=0)
+    env = RobotEnv(robot, SPEC, pace=False)
+    assert env.safety.clock is not None and env.safety.clock() == robot.time
+    env.reset(start)
+    q = start.observation.state.astype(np.float64)
+    chunk = np.tile(q, (SPEC.horizon, 1))
+    chunk[1:, 0] += 0.2  # after the first command: under the step cap, faster than the arm's speed
+    seg = env.step(chunk)
+    assert np.all(np.abs(np.diff(seg.actions[:, 0])) <= np.pi / 30 + 1e-5)
+    jump = np.tile(seg.last.state.astype(np.float64), (SPEC.horizon, 1))
+    jump[3:, 2] += 0.5  # a jump no controller should be asked for in one control period
+    with pytest.raises(SafetyViolationError, match="max_step"):
+        env.step(jump)
+
+
+def test_robot_env_refuses_a_stale_start(robot: SimRobot) -> None:
+    start = robot.reset(seed=0, subtask=0)
+    env = RobotEnv(robot, SPEC, pace=False)
+    env.reset(start)
+    for _ in range(45):  # 1.5 s of simulated time pass before the first chunk arrives
+        robot.send_action(start.observation.state)
+    with pytest.raises(StaleObservationError, match="s old"):
+        env.step(np.tile(start.observation.state, (SPEC.horizon, 1)))
 
 
 def test_robot_env_records_k_frames_at_stride(robot: SimRobot) -> None:
@@ -59,7 +74,7 @@ def test_robot_env_refuses_a_robot_away_from_the_start(robot: SimRobot) -> None:
     moved[0] += 0.3
     for _ in range(20):
         robot.send_action(moved)
-    with pytest.raises(EnvError, match="not at the start"):
+    with pytest.raises(SafetyViolationError, match="not at the start"):
         RobotEnv(robot, SPEC, pace=False).reset(start)
     with pytest.raises(EnvError, match="before reset"):
         RobotEnv(robot, SPEC, pace=False).step(np.zeros((50, 14), np.float32))
