@@ -44,13 +44,38 @@ from pilworld.types import LEFT_GRIP, STATE_DIM
 PING_1 = bytes.fromhex("FF FF FD 00 01 03 00 01 19 4E")
 PING_1_STATUS_XM430_W210 = bytes.fromhex("FF FF FD 00 01 07 00 55 00 06 04 26 65 5D")  # model 1030, fw 38
 READ_POSITION_1 = bytes.fromhex("FF FF FD 00 01 07 00 02 84 00 04 00 1D 15")  # read 4 bytes at 132
+MARGIN_MS = 250.0
+
+
+class PatientPort(PortHandler):  # type: ignore[misc]
+    """The SDK's port waiting MARGIN_MS longer for a status packet than its ~34 ms, without spinning.
+
+    The fake answers in well under a millisecond, but on a loaded CI machine its thread may not be
+    scheduled within the SDK's 34 ms; a missed deadline here would be a test flake, not a finding. The
+    stock port polls a non-blocking read in a tight loop, which in one process starves the fake's thread
+    of the GIL; a 1 ms read timeout (as in the driver's port) lets it sleep instead.
+    """
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (the SDK's name)
+        ok = bool(super().setupPort(cflag_baud))
+        self.ser.timeout = 0.001
+        return ok
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (the SDK's name)
+        super().setPacketTimeout(packet_length)
+        self.packet_timeout += MARGIN_MS
+
+
+def _open(path: str) -> Any:
+    port = PatientPort(path)
+    assert port.setBaudRate(57600)
+    return port
 
 
 class Rig:
     def __init__(self, bus: FakeDynamixelBus, backend: KinematicBackend, faults: FaultSwitch) -> None:
         self.bus, self.backend, self.faults = bus, backend, faults
-        self.port: Any = PortHandler(bus.path)
-        assert self.port.setBaudRate(57600)
+        self.port = _open(bus.path)
         self.ph: Any = PacketHandler(2.0)
 
 
@@ -233,8 +258,7 @@ def test_present_current_reaches_the_cap_when_the_fingers_are_blocked() -> None:
             return max(0.4, super().gripper_opening(side))  # an object 0.4 wide between the fingers
 
     with FakeDynamixelBus(Blocked(grip_speed=5.0), {1: "left"}) as bus:
-        port: Any = PortHandler(bus.path)
-        port.setBaudRate(57600)
+        port = _open(bus.path)
         ph: Any = PacketHandler(2.0)
         ph.write1ByteTxRx(port, 1, 11, 5)
         ph.write2ByteTxRx(port, 1, 102, 150)

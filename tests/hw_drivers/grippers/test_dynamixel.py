@@ -1,8 +1,10 @@
 """``DynamixelGripper`` with the real ``dynamixel_sdk`` against the fake bus on a pty.
 
-Fault bounds asserted here (retries=2, timeout=0.04 s, poll 100 Hz; measured ~0.15 s for no answer, a few
-ms for corruption and hang-up, ≤0.1 s + a read for a hardware error): every fault → its typed error in
-< FAULT_BOUND s, and ``set_target`` never waits on the bus.
+Fault bounds asserted here: every fault → its typed error in < FAULT_BOUND s, and ``set_target`` never
+waits on the bus. With the driver's defaults (retries=2, timeout=0.04 s, 100 Hz) no answer takes ~0.15 s,
+corruption and hang-up a few ms, a hardware error ≤ 0.1 s + one read. The tests run with timeout=0.15 s
+(~0.45 s to a timeout error) and read status with max_age=AGE so that CPU contention on a shared CI
+machine (the fake and the driver share the cores) is not mistaken for a fault.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from pilworld.types import LEFT_GRIP, STATE_DIM
 
 FAULT_BOUND = 1.0  # s, fault injected → typed error raised by the next call
 CLOSED, OPEN = 2048, 3048  # the fake's own mapping (FakeDynamixelBus defaults)
+TIMEOUT = 0.15  # s per status packet in these tests (see the module docstring)
+AGE = 1.0  # max_age of status() where staleness is not the point
 
 
 class Rig:
@@ -41,7 +45,7 @@ class Rig:
         self.backend, self.faults, self.bus = backend, faults, bus
 
     def gripper(self, **kw: object) -> DynamixelGripper:
-        args: dict[str, object] = {"ticks_closed": CLOSED, "ticks_open": OPEN, **kw}
+        args: dict[str, object] = {"ticks_closed": CLOSED, "ticks_open": OPEN, "timeout": TIMEOUT, **kw}
         return DynamixelGripper("left_gripper", self.bus.path, 1, **args)  # type: ignore[arg-type]
 
 
@@ -66,7 +70,7 @@ def gripper(rig: Rig) -> Iterator[DynamixelGripper]:
     g.disconnect()
 
 
-def _until(cond: Callable[[], bool], timeout: float = 1.0) -> None:
+def _until(cond: Callable[[], bool], timeout: float = 2.0) -> None:
     deadline = time.monotonic() + timeout
     while not cond():
         assert time.monotonic() < deadline, "condition not met in time"
@@ -93,15 +97,15 @@ def test_is_a_gripper(gripper: DynamixelGripper) -> None:
 
 
 def test_tracks_targets(rig: Rig, gripper: DynamixelGripper) -> None:
-    first = gripper.status()
+    first = gripper.status(AGE)
     assert first.opening == pytest.approx(0.5) and first.target == pytest.approx(0.5)
     for target in (0.9, 0.1, 0.6):
         assert gripper.set_target(target) == target
-        _until(lambda t=target: abs(gripper.status().opening - t) < 0.002)  # type: ignore[misc]
+        _until(lambda t=target: abs(gripper.status(AGE).opening - t) < 0.002)  # type: ignore[misc]
         assert rig.backend.gripper_opening("left") == pytest.approx(target, abs=0.002)
-        assert gripper.status().target == pytest.approx(target, abs=0.001)
+        assert gripper.status(AGE).target == pytest.approx(target, abs=0.001)
     assert gripper.set_target(1.7) == 1.0 and gripper.set_target(-3.0) == 0.0
-    _until(lambda: gripper.status().opening < 0.002)
+    _until(lambda: gripper.status(AGE).opening < 0.002)
     with pytest.raises(ValueError):
         gripper.set_target(float("nan"))
 
@@ -109,9 +113,9 @@ def test_tracks_targets(rig: Rig, gripper: DynamixelGripper) -> None:
 def test_reversed_calibration() -> None:
     backend = _backend(0.5)
     with FakeDynamixelBus(backend, {1: "left"}, ticks_closed=3000, ticks_open=1000) as bus:
-        g = DynamixelGripper("g", bus.path, 1, ticks_closed=3000, ticks_open=1000)
+        g = DynamixelGripper("g", bus.path, 1, ticks_closed=3000, ticks_open=1000, timeout=TIMEOUT)
         with g:
-            assert g.status().opening == pytest.approx(0.5)
+            assert g.status(AGE).opening == pytest.approx(0.5)
             g.set_target(0.8)
             _until(lambda: abs(backend.gripper_opening("left") - 0.8) < 0.002)
             assert bus.register(1, "Goal_Position") == 1400
@@ -122,16 +126,18 @@ def test_writes_the_goal_only_when_it_changes(rig: Rig, gripper: DynamixelGrippe
     assert rig.bus.instructions[INST_SYNC_WRITE] == 0  # nothing asked yet: the servo holds its goal
     for _ in range(20):
         gripper.set_target(0.7)
-    time.sleep(0.15)
+    _until(lambda: rig.bus.instructions[INST_SYNC_WRITE] >= 1)
+    _until(lambda: abs(gripper.status(AGE).opening - 0.7) < 0.002)
+    time.sleep(0.1)  # ~10 more cycles with the goal confirmed: nothing more to write
     assert rig.bus.instructions[INST_SYNC_WRITE] == 1
 
 
 def test_a_dropped_goal_write_is_repeated(rig: Rig, gripper: DynamixelGripper) -> None:
-    rig.faults.inject("drop", rate=0.5)  # seed 0: some packets vanish, never 3 in a row here
+    rig.faults.inject("drop", rate=0.3)  # seed 0: some packets vanish, 3 in a row only at the 72nd
     gripper.set_target(0.2)
     _until(lambda: rig.bus.register(1, "Goal_Position") == 2248)
     rig.faults.clear()
-    _until(lambda: abs(gripper.status().opening - 0.2) < 0.002)
+    _until(lambda: abs(gripper.status(AGE).opening - 0.2) < 0.002)
 
 
 def test_survives_occasional_corruption(rig: Rig) -> None:
@@ -142,7 +148,7 @@ def test_survives_occasional_corruption(rig: Rig) -> None:
         rig.faults.inject("corrupt", rate=0.25)
         g.set_target(0.3)
         time.sleep(0.3)
-        assert g.status().opening == pytest.approx(0.3, abs=0.002)
+        assert g.status(AGE).opening == pytest.approx(0.3, abs=0.002)
 
 
 def test_startup_writes_present_to_goal_before_torque_on(rig: Rig) -> None:
@@ -159,7 +165,7 @@ def test_startup_writes_present_to_goal_before_torque_on(rig: Rig) -> None:
         ]
         time.sleep(0.2)
         assert rig.backend.gripper_opening("left") == pytest.approx(0.5)  # no jump to the stale goal
-        assert g.status().target == pytest.approx(0.5)
+        assert g.status(AGE).target == pytest.approx(0.5)
 
 
 def test_object_detected_when_the_fingers_stop_short() -> None:
@@ -168,16 +174,16 @@ def test_object_detected_when_the_fingers_stop_short() -> None:
             return max(0.4, super().gripper_opening(side))
 
     with FakeDynamixelBus(_backend(0.8, Blocked), {1: "left"}) as bus:
-        g = DynamixelGripper("g", bus.path, 1, ticks_closed=CLOSED, ticks_open=OPEN)
+        g = DynamixelGripper("g", bus.path, 1, ticks_closed=CLOSED, ticks_open=OPEN, timeout=TIMEOUT)
         with g:
-            assert not g.status().object_detected
+            assert not g.status(AGE).object_detected
             g.set_target(0.6)
-            _until(lambda: abs(g.status().opening - 0.6) < 0.002)
+            _until(lambda: abs(g.status(AGE).opening - 0.6) < 0.002)
             time.sleep(0.1)
-            assert not g.status().object_detected  # reached the goal: nothing held
+            assert not g.status(AGE).object_detected  # reached the goal: nothing held
             g.set_target(0.0)
-            _until(lambda: g.status().object_detected)
-            assert g.status().opening == pytest.approx(0.4, abs=0.002)
+            _until(lambda: g.status(AGE).object_detected)
+            assert g.status(AGE).opening == pytest.approx(0.4, abs=0.002)
 
 
 def test_roundtrip_stats(gripper: DynamixelGripper) -> None:
@@ -232,7 +238,8 @@ def test_set_target_never_waits_on_a_stalled_bus(rig: Rig) -> None:
             g.set_target(i / 200)
             durations.append(time.perf_counter() - t0)
             time.sleep(0.001)
-        assert max(durations) < 0.005 and statistics.median(durations) < 0.0005
+        # < 5 ms each; 2 of 200 may exceed it when the OS preempts this process on a loaded machine
+        assert sorted(durations)[-3] < 0.005 and statistics.median(durations) < 0.0005
         with pytest.raises(StaleObservationError):
             g.status(max_age=0.1)
 
@@ -242,7 +249,7 @@ def test_set_target_never_waits_on_a_stalled_bus(rig: Rig) -> None:
 
 def test_wrong_model_is_refused() -> None:
     with FakeDynamixelBus(_backend(), {1: "left"}, model=1060) as bus:
-        g = DynamixelGripper("g", bus.path, 1, ticks_closed=CLOSED, ticks_open=OPEN)
+        g = DynamixelGripper("g", bus.path, 1, ticks_closed=CLOSED, ticks_open=OPEN, timeout=TIMEOUT)
         with pytest.raises(DeviceConnectionError, match=r"model 1060 \(XL430-W250\), expected 1020"):
             g.connect()
         assert not g.is_connected
@@ -258,7 +265,7 @@ def test_missing_port(tmp_path: Path) -> None:
 
 
 def test_absent_servo_id(rig: Rig) -> None:
-    g = DynamixelGripper("g", rig.bus.path, 5, ticks_closed=CLOSED, ticks_open=OPEN)
+    g = DynamixelGripper("g", rig.bus.path, 5, ticks_closed=CLOSED, ticks_open=OPEN, timeout=TIMEOUT)
     with pytest.raises(DeviceConnectionError, match=r"servo 5 .* does not answer ping"):
         g.connect()
 
@@ -291,7 +298,7 @@ def test_lifecycle_guards(rig: Rig) -> None:
     assert rig.bus.register(1, "Torque_Enable") == 0
     assert not g.is_connected
     g.connect()  # and again
-    assert g.status().opening == pytest.approx(0.5)
+    assert g.status(AGE).opening == pytest.approx(0.5)
     g.disconnect()
 
 
