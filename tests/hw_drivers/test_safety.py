@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 from hw_drivers.errors import SafetyViolationError, StaleObservationError
 from hw_drivers.safety import SafetyFilter, SafetyLimits
 from pilworld.config.rig import RigConfig
+from pilworld.types import RobotSpec
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
 
@@ -21,26 +25,24 @@ class Clock:
 
 
 @pytest.fixture
-def spec():  # type: ignore[no-untyped-def]
+def spec() -> RobotSpec:
     base = RigConfig.load(SIM).robot_spec()
-    from dataclasses import replace
-
     return replace(base, max_joint_speed=tuple([np.pi] * 6 + [2.0]) * 2)
 
 
-def _filter(spec, **kw):  # type: ignore[no-untyped-def]
+def _filter(spec: RobotSpec, **kw: float) -> tuple[SafetyFilter, list[int], Clock]:
     stops: list[int] = []
     clock = Clock()
     f = SafetyFilter(spec, SafetyLimits(**kw), clock=clock, on_violation=lambda: stops.append(1))
     return f, stops, clock
 
 
-def _home(spec) -> np.ndarray:  # type: ignore[no-untyped-def]
-    mid = (spec.lower_array + spec.upper_array) / 2
-    return mid.astype(np.float64)
+def _home(spec: RobotSpec) -> NDArray[np.float64]:
+    mid = (spec.lower_array.astype(np.float64) + spec.upper_array.astype(np.float64)) / 2
+    return np.asarray(mid, dtype=np.float64)
 
 
-def test_a_command_near_the_robot_passes_and_is_slowed_to_the_speed_cap(spec) -> None:  # type: ignore[no-untyped-def]
+def test_a_command_near_the_robot_passes_and_is_slowed_to_the_speed_cap(spec: RobotSpec) -> None:
     f, stops, _ = _filter(spec)
     q = _home(spec)
     f.check_start(q, q)
@@ -58,7 +60,7 @@ def test_a_command_near_the_robot_passes_and_is_slowed_to_the_speed_cap(spec) ->
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
-def test_non_finite_is_refused_and_stops(spec, bad: float) -> None:  # type: ignore[no-untyped-def]
+def test_non_finite_is_refused_and_stops(spec: RobotSpec, bad: float) -> None:
     f, stops, _ = _filter(spec)
     q = _home(spec)
     f.reset(q)
@@ -69,14 +71,14 @@ def test_non_finite_is_refused_and_stops(spec, bad: float) -> None:  # type: ign
     assert e.value.check == "finite" and stops == [1]
 
 
-def test_wrong_shape_is_refused(spec) -> None:  # type: ignore[no-untyped-def]
+def test_wrong_shape_is_refused(spec: RobotSpec) -> None:
     f, stops, _ = _filter(spec)
     with pytest.raises(SafetyViolationError, match="shape"):
         f(np.zeros(7))
     assert stops == [1]
 
 
-def test_out_of_limit_is_refused_but_a_hair_over_is_clipped(spec) -> None:  # type: ignore[no-untyped-def]
+def test_out_of_limit_is_refused_but_a_hair_over_is_clipped(spec: RobotSpec) -> None:
     f, stops, _ = _filter(spec, max_arm_step=10.0)
     q = spec.upper_array.astype(np.float64) - 0.01
     f.reset(q)
@@ -89,7 +91,7 @@ def test_out_of_limit_is_refused_but_a_hair_over_is_clipped(spec) -> None:  # ty
     assert spec.joint_names[1] in str(e.value) and stops == [1]
 
 
-def test_an_oversized_step_is_refused(spec) -> None:  # type: ignore[no-untyped-def]
+def test_an_oversized_step_is_refused(spec: RobotSpec) -> None:
     f, stops, _ = _filter(spec)
     q = _home(spec)
     f.reset(q)
@@ -101,7 +103,7 @@ def test_an_oversized_step_is_refused(spec) -> None:  # type: ignore[no-untyped-
     assert spec.joint_names[8] in str(e.value) and stops == [1]
 
 
-def test_a_stale_observation_is_refused(spec) -> None:  # type: ignore[no-untyped-def]
+def test_a_stale_observation_is_refused(spec: RobotSpec) -> None:
     f, stops, clock = _filter(spec, max_observation_age=0.5)
     f.check_observation(clock.now - 0.4)
     assert stops == []
@@ -110,12 +112,12 @@ def test_a_stale_observation_is_refused(spec) -> None:  # type: ignore[no-untype
     assert stops == [1]
 
 
-def test_no_clock_no_staleness_rule(spec) -> None:  # type: ignore[no-untyped-def]
+def test_no_clock_no_staleness_rule(spec: RobotSpec) -> None:
     f = SafetyFilter(spec)
     f.check_observation(-1e9)  # the imagined branch has no robot clock
 
 
-def test_start_pose_gate_robot_side(spec) -> None:  # type: ignore[no-untyped-def]
+def test_start_pose_gate_robot_side(spec: RobotSpec) -> None:
     f, stops, _ = _filter(spec)
     q = _home(spec)
     away = q.copy()
@@ -125,7 +127,7 @@ def test_start_pose_gate_robot_side(spec) -> None:  # type: ignore[no-untyped-de
     assert e.value.check == "start_pose" and spec.joint_names[2] in str(e.value) and stops == [1]
 
 
-def test_start_pose_gate_command_side(spec) -> None:  # type: ignore[no-untyped-def]
+def test_start_pose_gate_command_side(spec: RobotSpec) -> None:
     f, stops, _ = _filter(spec)
     q = _home(spec)
     f.check_start(q, q)
