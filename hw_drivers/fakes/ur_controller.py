@@ -16,8 +16,9 @@ Three TCP servers on one loopback address, as on a real controller:
 
 The arm is the ``side`` arm of a :class:`~hw_drivers.fakes.backend.RigBackend`: ``actual_q``/``actual_qd`` are
 read from it and servoJ/moveJ targets written to it. Faults (:class:`~hw_drivers.fakes.faults.FaultSwitch`):
-``drop`` (output packets not sent), ``corrupt`` (an output packet with a broken frame: size field 2, shorter
-than the header), ``stall`` (no output, no input processing, no dashboard answers; sockets stay open),
+``drop`` (output packets not sent), ``corrupt`` (output packets framed correctly but with every payload byte
+0xFF: NaN joint angles, out-of-range modes; a broken *frame* — size field below 3 — makes ur_rtde 1.6.5 abort
+the whole client process with an uncaught ``std::length_error``, so it is not what this fault sends), ``stall`` (no output, no input processing, no dashboard answers; sockets stay open),
 ``protective_stop`` (latched once seen: program stopped, arm held, cleared by dashboard ``unlock protective
 stop``; the fault is consumed), ``emergency_stop`` (while injected; afterwards the arm is powered off until
 ``power on`` + ``brake release``), ``disconnect`` (all sockets closed and new connections refused while
@@ -394,10 +395,10 @@ class FakeURController:
                 next_send = max(next_send + period, time.monotonic() - period)
                 if self.faults.active("stall") or self.faults.active("drop"):
                     continue
-                if self.faults.active("corrupt"):
-                    conn.sendall(struct.pack(">HB", 2, MSG_U) + b"\x01" * 16)  # size < header: a broken frame
-                    continue
-                conn.sendall(self._output_packet(outputs))
+                packet = self._output_packet(outputs)
+                if self.faults.active("corrupt"):  # intact frame, garbled content (NaN doubles, huge ints)
+                    packet = packet[:4] + b"\xff" * (len(packet) - 4)
+                conn.sendall(packet)
 
     def _on_input(self, payload: bytes, inputs: dict[int, list[tuple[str, str]]]) -> None:
         recipe = inputs.get(payload[0])
