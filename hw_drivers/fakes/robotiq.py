@@ -142,6 +142,13 @@ class FakeRobotiqGripper:
         with self._lock:
             self._fault, self._fault_persistent, self._kflt = 0, False, 0
 
+    def power_cycle(self) -> None:
+        """A brownout: the registers clear and the gripper is back in reset (gSTA 0) until re-activated."""
+        with self._lock:
+            self._command[:] = bytes(6)
+            self._activation_start, self._activated, self._priority_fault = None, False, 0
+            self._hold()
+
     @property
     def command(self) -> bytes:
         """The 6 command bytes last written (rACT/rGTO/rATR, reserved×2, rPR, rSP, rFR)."""

@@ -355,6 +355,9 @@ class RobotiqGripper:
                 with self._lock:
                     self._status = status
                 self._check_fault(raw)
+                if (raw[0] >> 4) & 0x03 != 3:  # a brownout or another master reset it: it will not move
+                    state = GSTA[(raw[0] >> 4) & 0x03]
+                    raise DeviceFaultError(self._name, f"gripper no longer activated (gSTA: {state}); reconnect")
             except RobotError as e:
                 with self._lock:
                     self._error = e

@@ -22,12 +22,19 @@ def h(s: str) -> bytes:
 class Rig:
     def __init__(self, fake: FakeRobotiqGripper, backend: KinematicBackend) -> None:
         self.fake, self.backend = fake, backend
-        self.port = serial.Serial(fake.path, 115200, timeout=0.2)
+        self.port = serial.Serial(fake.path, 115200, timeout=1.0)  # generous: a loaded CI box
 
     def ask(self, frame: bytes, n: int = 64) -> bytes:
         self.port.reset_input_buffer()
         self.port.write(frame)
         return bytes(self.port.read(n))
+
+    def silent(self, frame: bytes) -> bool:
+        """Whether ``frame`` gets no reply within 0.2 s."""
+        self.port.reset_input_buffer()
+        self.port.write(frame)
+        time.sleep(0.2)
+        return int(self.port.in_waiting) == 0
 
     def command(self, action: int, position: int = 0, speed: int = 255, force: int = 255) -> bytes:
         regs = modbus.bytes_to_registers(bytes([action, 0, 0, position, speed, force]))
@@ -69,13 +76,13 @@ def rig() -> Iterator[Rig]:
 
 
 def test_manual_activation_sequence() -> None:
-    with make_rig(activation_time=0.3) as r:
+    with make_rig(activation_time=0.5) as r:
         assert r.ask(h("09 10 03 E8 00 03 06 00 00 00 00 00 00 73 30"), 8) == h("09 10 03 E8 00 03 01 30")
         assert r.ask(h("09 10 03 E8 00 03 06 01 00 00 00 00 00 72 E1"), 8) == h("09 10 03 E8 00 03 01 30")
         assert r.ask(h("09 03 07 D0 00 01 85 CF"), 7) == h("09 03 02 11 00 55 D5")  # activating
         t0 = time.monotonic()
         wait_for(lambda: r.ask(h("09 03 07 D0 00 01 85 CF"), 7) == h("09 03 02 31 00 4C 15"))
-        assert 0.15 < time.monotonic() - t0 < 0.6  # takes a realistic moment
+        assert 0.3 < time.monotonic() - t0 < 2.0  # takes a realistic moment
 
 
 def test_moves_the_backend_and_reports_position(rig: Rig) -> None:
@@ -106,7 +113,7 @@ def test_position_request_before_activation_is_ignored(rig: Rig) -> None:
 
 
 def test_request_during_activation_is_delayed() -> None:
-    with make_rig(activation_time=0.2) as r:
+    with make_rig(activation_time=0.5) as r:
         r.command(0)
         r.command(0x09, position=0)  # activate and go at once
         assert r.status()[2] == 0x05  # action delayed
@@ -140,7 +147,12 @@ def test_closed_count_sets_the_stroke() -> None:
         assert r.status()[4] == 230 and r.backend.gripper_opening("left") == 0.0
 
 
-def test_reset_stops_the_fingers(rig: Rig) -> None:
+def test_reset_stops_the_fingers() -> None:
+    with make_rig(KinematicBackend(grip_speed=0.5), activation_time=0.02) as rig:
+        _reset_stops(rig)
+
+
+def _reset_stops(rig: Rig) -> None:
     rig.activate()
     rig.command(0x09, position=0)
     time.sleep(0.05)
@@ -164,13 +176,13 @@ def test_exceptions_and_silence(rig: Rig) -> None:
     assert reply == modbus.exception_reply(9, 0x2B, modbus.ILLEGAL_FUNCTION)
     bad = bytearray(modbus.read_request(9, 2000, 3))
     bad[-1] ^= 0xFF
-    assert rig.ask(bytes(bad)) == b""  # bad CRC: no reply
-    assert rig.ask(modbus.read_request(8, 2000, 3)) == b""  # another slave: no reply
+    assert rig.silent(bytes(bad))  # bad CRC: no reply
+    assert rig.silent(modbus.read_request(8, 2000, 3))  # another slave: no reply
     assert rig.status()[0] == 0  # still in step afterwards
 
 
 def test_broadcast_write_is_applied_silently(rig: Rig) -> None:
-    assert rig.ask(modbus.write_request(0, 1000, [0x0100, 0, 0])) == b""
+    assert rig.silent(modbus.write_request(0, 1000, [0x0100, 0, 0]))
     assert rig.fake.command[0] == 0x01
 
 
@@ -185,7 +197,7 @@ def test_partial_register_write(rig: Rig) -> None:
 @pytest.mark.parametrize("kind", ["drop", "stall"])
 def test_no_reply_faults(rig: Rig, kind: str) -> None:
     rig.fake.faults.inject(kind)
-    assert rig.ask(modbus.read_request(9, 2000, 3)) == b""
+    assert rig.silent(modbus.read_request(9, 2000, 3))
     rig.fake.faults.clear(kind)
     assert len(rig.status()) == 6
 
