@@ -107,6 +107,7 @@ class ServoLoop:
         self.setpoint, self.goal = self.q.copy(), self.q.copy()
         self.target_seq = self.target[S.T_SEQ]  # targets sent before now are stale: hold
         self.status = S.OK
+        self._publish(time.monotonic())  # before replying: the parent reads this state right away
 
     # -- one cycle
 
@@ -259,7 +260,8 @@ class ServoLoop:
             time.sleep(poll)
 
     def _recover(self) -> None:
-        self._read(force=True)
+        since = self.last_ts  # decide on a sample taken after the request, not on one already seen
+        self._wait("get a fresh RTDE sample", lambda: self.last_ts != since, 1.0)
         if self.bits & S.EMERGENCY_MASK:
             raise WorkerError(S.EMERGENCY_STOP, "emergency stop engaged: release it on the robot, then recover()")
         self._publish_status(S.STARTING)
