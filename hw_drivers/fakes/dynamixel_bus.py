@@ -489,7 +489,8 @@ class FakeDynamixelBus:
         if "Goal_Current" in values and abs(values["Goal_Current"]) > servo.get("Current_Limit"):
             return ERR_DATA_LIMIT
         low, high = servo.get("Min_Position_Limit"), servo.get("Max_Position_Limit")
-        if "Goal_Position" in values and mode in (3, 5) and not low <= values["Goal_Position"] <= high:
+        # the position limits bind in position mode (3) only; modes 4 and 5 are multi-turn
+        if "Goal_Position" in values and mode == 3 and not low <= values["Goal_Position"] <= high:
             return ERR_DATA_LIMIT
         return 0
 

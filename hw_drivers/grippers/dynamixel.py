@@ -62,7 +62,7 @@ BAUDRATES = (9600, 57600, 115200, 1000000, 2000000, 3000000, 4000000)  # what an
 CURRENT_UNIT_MA = 2.69  # XM430-W350: one unit of Goal/Present_Current
 
 # Control table (XM430-W350, protocol 2.0)
-OPERATING_MODE, CURRENT_LIMIT, MAX_POSITION_LIMIT = 11, 38, 48  # EEPROM (+ Min_Position_Limit at 52)
+OPERATING_MODE, CURRENT_LIMIT = 11, 38  # EEPROM
 TORQUE_ENABLE, HARDWARE_ERROR_STATUS, GOAL_CURRENT, GOAL_POSITION = 64, 70, 102, 116
 MOVING, PRESENT_CURRENT, PRESENT_POSITION = 122, 126, 132
 CURRENT_BASED_POSITION = 5
@@ -72,6 +72,7 @@ HEALTH_HZ = 10.0
 ERRBIT_ALERT = 0x80
 HARDWARE_ERRORS = {0x01: "input voltage", 0x04: "overheating", 0x08: "motor encoder", 0x10: "electrical shock"}
 HARDWARE_ERRORS[0x20] = "overload"
+CALIBRATION_SLACK = 0.1  # fraction of the travel the fingers may stand outside the calibration at start-up
 GRASP_TICKS = 20  # further than this from the goal, stopped, current at the cap = holding something
 GRASP_CURRENT = 0.9  # fraction of the cap that counts as "at the cap"
 IO_ERRORS = (OSError, termios.error)  # pyserial's SerialException is an OSError; tcflush raises termios.error
@@ -301,7 +302,6 @@ class DynamixelGripper:
             self._write(1, TORQUE_ENABLE, 0)
             self._write(1, OPERATING_MODE, CURRENT_BASED_POSITION)
             limit = self._read(CURRENT_LIMIT, 2)
-            high, low = (_signed(v, 32) for v in self._read_many(MAX_POSITION_LIMIT, 2))
         except (DeviceTimeoutError, DeviceProtocolError) as e:
             raise DeviceConnectionError(self._name, f"{where} failed during set-up: {e}") from e
         if self._cap > limit:
@@ -311,15 +311,17 @@ class DynamixelGripper:
                 f"({limit * CURRENT_UNIT_MA:.0f} mA)",
             )
         cal = self.calibration
-        if not (low <= min(cal.ticks_closed, cal.ticks_open) and max(cal.ticks_closed, cal.ticks_open) <= high):
-            raise DeviceConnectionError(
-                self._name,
-                f"calibration {cal.ticks_closed} … {cal.ticks_open} ticks is outside the servo's "
-                f"position limits {low} … {high}",
-            )
         try:
             self._write(2, GOAL_CURRENT, self._cap)
             present = _signed(self._read(PRESENT_POSITION, 4), 32)
+            # Fingers far outside the calibrated travel: a wrong calibration, servo id or horn position (or
+            # an encoder wrapped past 0/4095). Targets would drive into a hard stop: refuse, torque still off.
+            if not -CALIBRATION_SLACK <= cal.to_opening(present, clip=False) <= 1 + CALIBRATION_SLACK:
+                raise DeviceConnectionError(
+                    self._name,
+                    f"present position {present} ticks is outside the calibrated travel {cal.ticks_closed} "
+                    f"(closed) … {cal.ticks_open} (open): recalibrate, or check the servo id and horn",
+                )
             self._write(4, GOAL_POSITION, present)  # before torque on: hold where it stands, no jump
             self._write(1, TORQUE_ENABLE, 1)
             self._sync_read = GroupSyncRead(self._port, self._ph, READ_START, READ_LENGTH)

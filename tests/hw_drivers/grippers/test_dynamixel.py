@@ -279,9 +279,9 @@ def test_hardware_error_at_connect(rig: Rig) -> None:
 def test_configuration_beyond_the_servo_is_refused(rig: Rig) -> None:
     with pytest.raises(DeviceConnectionError, match="Current_Limit"):
         rig.gripper(current_limit_ma=5000.0).connect()
-    rig.bus.set_register(1, "Max_Position_Limit", 2900)
-    with pytest.raises(DeviceConnectionError, match="position limits"):
-        rig.gripper().connect()
+    with pytest.raises(DeviceConnectionError, match="outside the calibrated travel"):
+        rig.gripper(ticks_closed=100, ticks_open=1000).connect()  # the fingers stand at 2548
+    assert rig.bus.register(1, "Torque_Enable") == 0
 
 
 def test_lifecycle_guards(rig: Rig) -> None:
