@@ -50,6 +50,7 @@ KNOWN_FUNCTIONS = (0x03, 0x04, 0x05, 0x06, 0x0F, 0x10)
 FRAME_GAP = 0.02
 # The fingers count as stopped after this long without moving (gOBJ 1/2 instead of 0).
 SETTLE_TIME = 0.1
+MOTION_EPS = 0.002  # ≈ half a count: less than this in SETTLE_TIME is standing still
 AT_POSITION_COUNTS = 2.0  # |gPO - goal| within this many counts → gOBJ 3
 
 
@@ -96,6 +97,7 @@ class FakeRobotiqGripper:
         self._priority_fault = 0  # 0x05 / 0x07, raised by the device itself
         self._goal: float | None = None  # the opening the fingers are driven to, None = not driven
         self._opening = backend.gripper_opening(self.side)
+        self._moved_from = self._opening
         self._last_move = time.monotonic()
         self._goal_since = self._last_move
 
@@ -202,8 +204,10 @@ class FakeRobotiqGripper:
             self._activated = True
             self._priority_fault = 0
         opening = self.backend.gripper_opening(self.side)
-        if abs(opening - self._opening) > 1e-4:
-            self._last_move = now
+        # Motion is measured from where the fingers last counted as moving, not sample to sample: a slow
+        # slew moves less than any threshold in one tick but still far in SETTLE_TIME.
+        if abs(opening - self._moved_from) > MOTION_EPS:
+            self._last_move, self._moved_from = now, opening
         self._opening = opening
         act = self._command[0]
         goal: float | None = None

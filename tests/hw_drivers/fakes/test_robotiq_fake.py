@@ -245,3 +245,14 @@ def test_automatic_release(rig: Rig) -> None:
     rig.command(0x19, position=255)  # rATR: open regardless of the request
     wait_for(lambda: rig.status()[2] == 0x0F)  # 0x0B in progress → 0x0F completed
     assert rig.backend.gripper_opening("left") == 1.0
+
+
+def test_slow_fingers_are_moving_not_blocked() -> None:
+    # 0.04 /s moves less than 1e-4 per 1 ms tick: motion must be judged over the settle window.
+    with make_rig(KinematicBackend(grip_speed=0.04), activation_time=0.02, tick=0.001) as r:
+        r.activate()
+        r.command(0x09, position=128)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 0.4:
+            assert r.status()[0] >> 6 == 0  # moving, no object
+            time.sleep(0.02)
