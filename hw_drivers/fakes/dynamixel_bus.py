@@ -12,10 +12,10 @@ for byte as to a U2D2 with servos behind it. What the fake implements, after the
 * ``Status_Return_Level`` (0 ping only, 1 ping+read, 2 all) and no reply to broadcasts except PING.
 
 Each servo drives one gripper side of the :class:`RigBackend` through a fixed linear map of the fake:
-``ticks_closed`` (default 2048) ↔ opening 0, ``ticks_open`` (default 3048) ↔ opening 1. Goal_Position,
-with torque on in a position mode (3, 4, 5), becomes ``set_gripper_target``; turning torque on tracks the
-*stored* goal at once (so a stale goal makes the fingers jump, as on the real servo); torque off freezes
-the fingers where they are. Present_Position comes from ``gripper_opening``. Present_Current is at the
+``ticks_closed`` (default 2048) ↔ opening 0, ``ticks_open`` (default 3072, a quarter turn on) ↔ opening 1.
+Goal_Position, with torque on in a position mode (3, 4, 5), becomes ``set_gripper_target``; turning torque
+on tracks the *stored* goal at once (so a stale goal makes the fingers jump, as on the real servo); torque
+off freezes the fingers where they are. Present_Position comes from ``gripper_opening``. Present_Current is at the
 Goal_Current cap (mode 5; Current_Limit otherwise) with the sign of the position error when the fingers
 have not moved for 50 ms while more than 20 ticks short of the goal (grasping), a quarter of it while
 moving, 0 at the goal.
@@ -271,7 +271,7 @@ class FakeDynamixelBus:
         model: int = 1020,
         *,
         ticks_closed: int = 2048,
-        ticks_open: int = 3048,
+        ticks_open: int = 3072,
     ) -> None:
         if not servos:
             raise ValueError("servos: expected at least one id → side")

@@ -171,7 +171,7 @@ def test_ping_read_write(rig: Rig) -> None:
     assert ph.ping(port, 1) == (1020, COMM_SUCCESS, 0)
     assert ph.ping(port, 9)[1] == COMM_RX_TIMEOUT  # nobody there
     assert ph.read2ByteTxRx(port, 1, 0) == (1020, COMM_SUCCESS, 0)
-    assert ph.read4ByteTxRx(port, 1, 132) == (2548, COMM_SUCCESS, 0)  # opening 0.5
+    assert ph.read4ByteTxRx(port, 1, 132) == (2560, COMM_SUCCESS, 0)  # opening 0.5: 2048 + 0.5 × 1024
     assert ph.write1ByteTxRx(port, 1, 11, 5) == (COMM_SUCCESS, 0)
     assert rig.bus.register(1, "Operating_Mode") == 5
     assert ph.write2ByteTxRx(port, 1, 102, 200) == (COMM_SUCCESS, 0)
@@ -208,10 +208,10 @@ def test_goal_drives_the_backend_only_with_torque_on(rig: Rig) -> None:
     ph.write1ByteTxRx(port, 1, 64, 1)  # torque on tracks the stored goal at once (the stale-goal jump)
     time.sleep(0.2)
     assert rig.backend.gripper_opening("left") == pytest.approx(0.0)
-    ph.write4ByteTxRx(port, 1, 116, 2848)
+    ph.write4ByteTxRx(port, 1, 116, 2816)
     time.sleep(0.3)
-    assert ph.read4ByteTxRx(port, 1, 132)[0] == 2848
-    assert rig.backend.gripper_opening("left") == pytest.approx(0.8)
+    assert ph.read4ByteTxRx(port, 1, 132)[0] == 2816
+    assert rig.backend.gripper_opening("left") == pytest.approx(0.75)
 
 
 def test_sync_read_and_sync_write(rig: Rig) -> None:
@@ -219,17 +219,17 @@ def test_sync_read_and_sync_write(rig: Rig) -> None:
     for sid in (1, 2):
         ph.write1ByteTxRx(port, sid, 64, 1)
     write = GroupSyncWrite(port, ph, 116, 4)
-    write.addParam(1, list((2148).to_bytes(4, "little")))
-    write.addParam(2, list((2948).to_bytes(4, "little")))
+    write.addParam(1, list((2176).to_bytes(4, "little")))
+    write.addParam(2, list((2944).to_bytes(4, "little")))
     assert write.txPacket() == COMM_SUCCESS
     time.sleep(0.3)
     read = GroupSyncRead(port, ph, 116, 20)
     assert read.addParam(1) and read.addParam(2)
     assert read.txRxPacket() == COMM_SUCCESS
-    assert [read.getData(sid, 116, 4) for sid in (1, 2)] == [2148, 2948]
-    assert [read.getData(sid, 132, 4) for sid in (1, 2)] == [2148, 2948]
-    assert rig.backend.gripper_opening("left") == pytest.approx(0.1)
-    assert rig.backend.gripper_opening("right") == pytest.approx(0.9)
+    assert [read.getData(sid, 116, 4) for sid in (1, 2)] == [2176, 2944]
+    assert [read.getData(sid, 132, 4) for sid in (1, 2)] == [2176, 2944]
+    assert rig.backend.gripper_opening("left") == pytest.approx(0.125)
+    assert rig.backend.gripper_opening("right") == pytest.approx(0.875)
     assert rig.bus.instructions[INST_SYNC_WRITE] == 1
 
 
@@ -264,14 +264,14 @@ def test_present_current_reaches_the_cap_when_the_fingers_are_blocked() -> None:
         ph.write2ByteTxRx(port, 1, 102, 150)
         ph.write1ByteTxRx(port, 1, 64, 1)
         assert ph.read2ByteTxRx(port, 1, 126)[0] == 0  # at the goal: no effort
-        ph.write4ByteTxRx(port, 1, 116, 2848)  # open: moves freely
+        ph.write4ByteTxRx(port, 1, 116, 2816)  # open: moves freely
         time.sleep(0.02)
         assert ph.read1ByteTxRx(port, 1, 122)[0] == 1
         time.sleep(0.3)
         assert ph.read2ByteTxRx(port, 1, 126)[0] == 0
         ph.write4ByteTxRx(port, 1, 116, 2048)  # close on the object
         deadline = time.monotonic() + 1.0
-        while ph.read1ByteTxRx(port, 1, 122)[0] or ph.read4ByteTxRx(port, 1, 132)[0] > 2448:
+        while ph.read1ByteTxRx(port, 1, 122)[0] or ph.read4ByteTxRx(port, 1, 132)[0] > 2458:  # 0.4 → 2457.6
             assert time.monotonic() < deadline
             time.sleep(0.01)
         time.sleep(0.06)

@@ -35,7 +35,7 @@ from hw_drivers.grippers.dynamixel import DynamixelGripper
 from pilworld.types import LEFT_GRIP, STATE_DIM
 
 FAULT_BOUND = 1.0  # s, fault injected → typed error raised by the next call
-CLOSED, OPEN = 2048, 3048  # the fake's own mapping (FakeDynamixelBus defaults)
+CLOSED, OPEN = 2048, 3072  # the fake's own mapping (FakeDynamixelBus defaults)
 TIMEOUT = 0.15  # s per status packet in these tests (see the module docstring)
 AGE = 1.0  # max_age of status() where staleness is not the point
 
@@ -135,7 +135,7 @@ def test_writes_the_goal_only_when_it_changes(rig: Rig, gripper: DynamixelGrippe
 def test_a_dropped_goal_write_is_repeated(rig: Rig, gripper: DynamixelGripper) -> None:
     rig.faults.inject("drop", rate=0.3)  # seed 0: some packets vanish, 3 in a row only at the 72nd
     gripper.set_target(0.2)
-    _until(lambda: rig.bus.register(1, "Goal_Position") == 2248)
+    _until(lambda: rig.bus.register(1, "Goal_Position") == round(CLOSED + 0.2 * (OPEN - CLOSED)))
     rig.faults.clear()
     _until(lambda: abs(gripper.status(AGE).opening - 0.2) < 0.002)
 
@@ -160,7 +160,7 @@ def test_startup_writes_present_to_goal_before_torque_on(rig: Rig) -> None:
             ("Torque_Enable", 0),
             ("Operating_Mode", 5),
             ("Goal_Current", round(400 / 2.69)),
-            ("Goal_Position", 2548),  # where the fingers stand (opening 0.5)
+            ("Goal_Position", 2560),  # where the fingers stand (opening 0.5)
             ("Torque_Enable", 1),
         ]
         time.sleep(0.2)
@@ -280,7 +280,7 @@ def test_configuration_beyond_the_servo_is_refused(rig: Rig) -> None:
     with pytest.raises(DeviceConnectionError, match="Current_Limit"):
         rig.gripper(current_limit_ma=5000.0).connect()
     with pytest.raises(DeviceConnectionError, match="outside the calibrated travel"):
-        rig.gripper(ticks_closed=100, ticks_open=1000).connect()  # the fingers stand at 2548
+        rig.gripper(ticks_closed=100, ticks_open=1000).connect()  # the fingers stand at 2560
     assert rig.bus.register(1, "Torque_Enable") == 0
 
 
