@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from calib.camera_model import CameraModel
+from pilworld.config.hardware import HardwareConfig
 from pilworld.config.loader import StrictModel, load_yaml_model
 from pilworld.geometry import pose_to_matrix
 from pilworld.kinematics.dual_arm import ArmMount, DualArmKinematics
@@ -124,6 +125,20 @@ class RigConfig(StrictModel):
     arms: Arms
     head_camera: HeadCameraConfig
     wrist_cameras: dict[str, WristCameraConfig] = Field(default_factory=dict)
+    hardware: HardwareConfig | None = None  # drivers of a real rig (or its protocol fakes); None: simulated
+
+    @model_validator(mode="after")
+    def _hardware_cameras(self) -> RigConfig:
+        if self.hardware is not None:
+            missing = [c for c in self.cameras if c not in self.hardware.cameras]
+            extra = [c for c in self.hardware.cameras if c not in self.cameras]
+            if missing or extra:
+                raise ValueError(
+                    f"hardware.cameras must name the rig's cameras {list(self.cameras)}"
+                    + (f"; missing {missing}" if missing else "")
+                    + (f"; unknown {extra}" if extra else "")
+                )
+        return self
 
     @field_validator("wrist_cameras")
     @classmethod
