@@ -176,7 +176,6 @@ class DynamixelGripper:
         self._connected = False
         self._error: RobotError | None = None
         self._target: int | None = None  # ticks; written by set_target, sent by the I/O thread
-        self._target_opening = 0.0
         self._reading: _Reading | None = None
         self._roundtrips: deque[float] = deque(maxlen=2000)
 
@@ -195,14 +194,15 @@ class DynamixelGripper:
             raise DeviceAlreadyConnectedError(self._name, "already connected")
         self._error, self._reading = None, None
         self._stop.clear()
-        self._port = _Port(self._port_name, self._timeout * 1000.0)
+        port = _Port(self._port_name, self._timeout * 1000.0)
         try:
             # setBaudRate opens the port at that rate (openPort would first open it at the SDK's 1 Mbaud)
-            if not self._port.setBaudRate(self._baudrate):
-                raise DeviceConnectionError(self._name, f"cannot set {self._baudrate} baud on {self._port_name}")
+            opened = port.setBaudRate(self._baudrate)
         except IO_ERRORS as e:
-            self._port = None
             raise DeviceConnectionError(self._name, f"cannot open serial port {self._port_name}: {e}") from e
+        if not opened:
+            raise DeviceConnectionError(self._name, f"cannot set {self._baudrate} baud on {self._port_name}")
+        self._port = port
         try:
             self._configure()
         except BaseException:
@@ -214,17 +214,20 @@ class DynamixelGripper:
 
     def disconnect(self) -> None:
         self._stop.set()
+        thread_alive = False
         if self._thread is not None:
-            self._thread.join(2.0)
-            if self._thread.is_alive():
+            self._thread.join(2.0)  # it stops between retries: at most one transaction (~timeout)
+            thread_alive = self._thread.is_alive()
+            if thread_alive:
                 log.warning("%s: the I/O thread did not stop within 2 s", self._name)
             self._thread = None
         if self._port is not None:
-            self._port.is_using = False  # an exception inside the SDK leaves its port marked busy
-            try:  # best effort: a gone or stalled bus must not keep disconnect() from finishing
-                self._ph.write1ByteTxRx(self._port, self._id, TORQUE_ENABLE, 0)
-            except IO_ERRORS as e:
-                log.warning("%s: torque off failed: %s", self._name, e)
+            if not thread_alive:  # never two threads on one port
+                self._port.is_using = False  # an exception inside the SDK leaves its port marked busy
+                try:  # best effort: a gone or stalled bus must not keep disconnect() from finishing
+                    self._ph.write1ByteTxRx(self._port, self._id, TORQUE_ENABLE, 0)
+                except Exception as e:
+                    log.warning("%s: torque off failed: %s", self._name, e)
             self._close_port()
         self._connected = False
 
@@ -235,7 +238,6 @@ class DynamixelGripper:
         with self._lock:
             self._check()
             self._target = self.calibration.to_ticks(clipped)
-            self._target_opening = clipped
         return clipped
 
     def status(self, max_age: float = 0.2) -> GripperStatus:
@@ -332,7 +334,6 @@ class DynamixelGripper:
             raise DeviceConnectionError(self._name, f"{where} failed during set-up: {e}") from e
         with self._lock:
             self._reading, self._target = reading, reading.goal
-            self._target_opening = cal.to_opening(reading.goal)
 
     # -- the I/O thread
 
@@ -457,6 +458,6 @@ class DynamixelGripper:
         if self._port is not None:
             try:
                 self._port.closePort()
-            except IO_ERRORS as e:
+            except Exception as e:  # best effort, like the torque off before it
                 log.warning("%s: closing %s: %s", self._name, self._port_name, e)
             self._port = None
