@@ -16,13 +16,16 @@ Three TCP servers on one loopback address, as on a real controller:
 
 The arm is the ``side`` arm of a :class:`~hw_drivers.fakes.backend.RigBackend`: ``actual_q``/``actual_qd`` are
 read from it and servoJ/moveJ targets written to it. Faults (:class:`~hw_drivers.fakes.faults.FaultSwitch`):
-``drop`` (output packets not sent), ``corrupt`` (output packets framed correctly but with every payload byte
-0xFF: NaN joint angles, out-of-range modes; a broken *frame* — size field below 3 — makes ur_rtde 1.6.5 abort
-the whole client process with an uncaught ``std::length_error``, so it is not what this fault sends), ``stall`` (no output, no input processing, no dashboard answers; sockets stay open),
-``protective_stop`` (latched once seen: program stopped, arm held, cleared by dashboard ``unlock protective
-stop``; the fault is consumed), ``emergency_stop`` (while injected; afterwards the arm is powered off until
-``power on`` + ``brake release``), ``disconnect`` (all sockets closed and new connections refused while
-injected).
+
+* ``drop`` — output packets are not sent;
+* ``corrupt`` — output packets framed correctly but with every payload byte 0xFF (NaN joints, out-of-range
+  modes). A broken *frame* (size field below 3) makes ur_rtde 1.6.5 abort the whole client process with an
+  uncaught ``std::length_error``, so that is not what this fault sends;
+* ``stall`` — no output, no input processing, no dashboard answers; the sockets stay open;
+* ``protective_stop`` — latched once seen (the fault is consumed): program stopped, arm held; cleared by
+  the dashboard ``unlock protective stop``;
+* ``emergency_stop`` — while injected; afterwards the arm is powered off until ``power on`` + ``brake release``;
+* ``disconnect`` — all sockets closed, new connections refused while injected.
 
 The ur_rtde constructors hold the GIL, so the client must never run in the process that hosts this fake.
 """

@@ -15,6 +15,7 @@ and the controller's watchdog stops the program; :meth:`recover` is the only way
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import threading
 import time
@@ -263,8 +264,10 @@ class URArm:
         self.disconnect()
 
     def __del__(self) -> None:
+        # A forgotten disconnect(): kill the worker; the controller watchdog stops the arm.
         if getattr(self, "_proc", None) is not None:
-            self._teardown(grace=0.0)
+            with contextlib.suppress(Exception):
+                self._teardown(grace=0.0)
 
     # -- internals
 
