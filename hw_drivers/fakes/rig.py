@@ -74,7 +74,13 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
             if g.driver == "dynamixel":
                 from hw_drivers.fakes.dynamixel_bus import FakeDynamixelBus
 
-                bus = FakeDynamixelBus(backend, {g.servo_id: side}, faults=faults[f"{side}_gripper"])
+                bus = FakeDynamixelBus(
+                    backend,
+                    {g.servo_id: side},
+                    faults=faults[f"{side}_gripper"],
+                    ticks_closed=g.ticks_closed,
+                    ticks_open=g.ticks_open,
+                )
                 bus.start()
                 started.append(bus)
                 gripper_ports[side] = bus.path

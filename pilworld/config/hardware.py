@@ -40,7 +40,7 @@ class DynamixelGripperConfig(StrictModel):
     driver: Literal["dynamixel"]
     port: str = Field(min_length=1)  # e.g. /dev/ttyUSB0, or "auto" on the fake rig
     servo_id: int = Field(default=1, ge=0, le=252)
-    baudrate: int = Field(default=57600, gt=0)
+    baudrate: Literal[9600, 57600, 115200, 1000000, 2000000, 3000000, 4000000] = 57600
     ticks_closed: int = Field(ge=0, le=4095)  # Present_Position with the fingers closed
     ticks_open: int = Field(ge=0, le=4095)  # … and fully open
     current_limit_ma: float = Field(default=300.0, gt=0, le=6000)  # Goal_Current cap: the grasp force
@@ -121,7 +121,17 @@ class HardwareConfig(StrictModel):
     cameras: dict[str, CameraDriverConfig]
     max_age: float = Field(default=0.25, gt=0, le=5)  # observations older than this are refused [s]
     start_speed: float = Field(default=0.3, gt=0, le=1.0)  # joint speed of the move to a start pose [rad/s]
+    # The 14-d pose every subtask starts from (arm joints in rad, grips 0 closed … 1 open); None: the
+    # arms start wherever they stand when the operator confirms the scene.
+    start_pose: tuple[float, ...] | None = None
     fake: FakeRigConfig | None = None
+
+    @field_validator("start_pose")
+    @classmethod
+    def _pose(cls, value: tuple[float, ...] | None) -> tuple[float, ...] | None:
+        if value is not None and len(value) != 14:
+            raise ValueError(f"start_pose: expected 14 values (two arms of 6 joints and 2 grips), got {len(value)}")
+        return value
 
     @model_validator(mode="after")
     def _auto_only_on_fakes(self) -> HardwareConfig:

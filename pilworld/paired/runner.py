@@ -33,11 +33,13 @@ from tqdm import tqdm
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.data.atomic import write_json
-from pilworld.data.outcomes import Outcome, record_outcomes
+from pilworld.data.outcomes import record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
 from pilworld.envs import ImaginedEnv, RobotEnv, SafetyFilter
 from pilworld.paired.episodes import rollout_episode
+from pilworld.paired.operator import Operator
+from pilworld.paired.stations import open_station
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
 from pilworld.types import ChunkSpec, Subtask
@@ -185,21 +187,6 @@ def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel
     return model, adapter
 
 
-def _require_sim(rig: RigConfig) -> None:
-    """Only the simulated rig has a robot until the real drivers land (issue #8)."""
-    if rig.head_camera.look_at is None:
-        raise ValueError(
-            f"rig {rig.name!r} describes real hardware (a calibrated head camera); paired runs on real robots need "
-            "the hardware drivers of issue #8 — use a simulated rig such as configs/rig/sim_dual_ur5e.yaml"
-        )
-
-
-def _robot(rig_path: str, task: str) -> Any:
-    from hw_drivers.sim.robot import SimRobot
-
-    return SimRobot(rig_path, task)
-
-
 def _branch_record(pair: PairedSubtask, rollout: Rollout) -> dict[str, Any]:
     return {
         "pair": pair.pair_id,
@@ -211,15 +198,23 @@ def _branch_record(pair: PairedSubtask, rollout: Rollout) -> dict[str, Any]:
 
 
 def paired_run(
-    cfg: PairedConfig, *, progress: bool = True, on_branch: Callable[[PairedSubtask, str], None] | None = None
+    cfg: PairedConfig,
+    *,
+    progress: bool = True,
+    on_branch: Callable[[PairedSubtask, str], None] | None = None,
+    operator: Operator | None = None,
 ) -> dict[str, Any]:
-    """Run (or resume) a paired run; returns a summary. ``on_branch`` is called after each stored branch."""
+    """Run (or resume) a paired run; returns a summary. ``on_branch`` is called after each stored branch.
+
+    On a rig with a ``hardware:`` section the real branch runs on the robot (or its protocol fakes)
+    through :class:`~pilworld.paired.stations.HardwareStation`; ``operator`` answers its prompts
+    (default: the terminal).
+    """
     from hw_drivers.sim.tasks import make_task
     from pilworld.collection.collect import dataset_spec
 
     root = Path(cfg.out)
     rig = RigConfig.load(cfg.rig)
-    _require_sim(rig)
     tasks = cfg.tasks  # validates the names
     models = {t: load_model(cfg, rig, t) for t in tasks}  # fails before anything is written
     store_spec = dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)
@@ -237,14 +232,13 @@ def paired_run(
     bar = tqdm(
         total=len(plan), initial=len(plan) - len(todo), desc="paired subtasks", unit="pair", disable=not progress
     )
-    with _robot(cfg.rig, tasks[0]) as robot, EpisodeWriter(root, store_spec) as writer:
+    with open_station(cfg.rig, tasks[0], operator) as station, EpisodeWriter(root, store_spec) as writer:
+        robot = station.robot
         for pair in todo:
             have = done.get(pair.pair_id, set())
             sub = pair.subtask
             model, adapter = models[sub.task]
-            start = robot.reset(
-                seed=sub.seed, subtask=sub.index, task=sub.task, history=cfg.spec.history, stride=cfg.spec.stride
-            )
+            start = station.start(sub, pair.checkpoint, cfg.spec)
             policy = policies[pair.checkpoint]
             extra = {
                 "pair": pair.pair_id,
@@ -252,7 +246,7 @@ def paired_run(
                 "adapter": adapter or "",
                 "world_model": cfg.world_model or "packaged",
             }
-            for origin in ORIGINS:
+            for origin in station.order:
                 if origin in have:
                     continue
                 policy.reset(seed=pair.seed)
@@ -267,7 +261,7 @@ def paired_run(
                         safety=SafetyFilter(robot.spec),  # the robot's filter: same commands in both branches
                     )
                 else:
-                    env = RobotEnv(robot, cfg.spec, pace=False)  # the simulator runs faster than real time
+                    env = RobotEnv(robot, cfg.spec, pace=station.pace)  # a simulator may run ahead of real time
                 rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
                 # The first policy chunk's digest: equal in both branches (same start, policy and seed), which
                 # is the premise of comparing their first rounds frame by frame (pilworld.metrics.single_step).
@@ -275,9 +269,9 @@ def paired_run(
                 ep = rollout_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=ep_extra)
                 index = writer.append(ep)
                 if origin == "real":
-                    check = robot.check_subtask(sub.index)
-                    outcome = Outcome(index, JUDGE_ID, "sim_state", check.success, rollout_length(rollout))
-                    record_outcomes(root, [outcome])
+                    verdicts = station.verdicts(sub, pair.checkpoint, index, rollout_length(rollout))
+                    if verdicts:
+                        record_outcomes(root, verdicts)
                 rec = _branch_record(pair, rollout)
                 records.append(rec)
                 with (root / TIMINGS_FILE).open("a") as fh:

@@ -105,8 +105,6 @@ def test_config_errors_are_clear(tmp_path: Path) -> None:
         _cfg(tmp_path, checkpoints=["a", "a"])
     with pytest.raises(ValueError, match="not a scripted checkpoint"):
         paired_run(_cfg(tmp_path / "x", checkpoints=["no_such_ckpt"]), progress=False)
-    with pytest.raises(ValueError, match="real hardware"):
-        paired_run(_cfg(tmp_path / "y", rig="configs/rig/real_dual_ur5e.yaml"), progress=False)
 
 
 def test_cli_runs_and_data_info_shows_both_origins(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -1,0 +1,184 @@
+"""Where the real branch runs: the simulated rig, or a hardware rig (real, or its protocol fakes).
+
+A station brings the robot to a subtask's start and says how the real branch ended:
+
+* :class:`SimStation` — ``SimRobot.reset`` lays out the scene and records the H_h history frames
+  during a lead-in; the simulator's privileged checker judges the end (``sim_checker``).
+* :class:`HardwareStation` — the operator is asked to set up the scene (on the fake rig the simulated
+  scene is laid out first, as a person would); the arms move to the start pose at a capped speed;
+  H_h history frames and the start observation are captured from the cameras while the robot holds
+  still; at the end the operator marks success or failure (a ``human`` judge, ``operator``) or leaves
+  it to the annotation app. On the fake rig the simulator's checker judges too.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Protocol
+
+import numpy as np
+
+from hw_drivers.robot import Robot
+from pilworld.config.rig import RigConfig
+from pilworld.data.outcomes import Outcome
+from pilworld.paired.operator import OPERATOR_JUDGE, ConsoleOperator, Operator
+from pilworld.types import ChunkSpec, Observation, Start, Subtask
+
+SIM_JUDGE = "sim_checker"
+
+
+class Station(Protocol):
+    @property
+    def robot(self) -> Robot: ...
+
+    @property
+    def pace(self) -> bool:
+        """Whether the real branch must keep to the control clock (hardware) or may run ahead (simulation)."""
+        ...
+
+    @property
+    def order(self) -> tuple[str, ...]:
+        """The order the branches of a pair run in."""
+        ...
+
+    def start(self, subtask: Subtask, checkpoint: str, spec: ChunkSpec) -> Start: ...
+
+    def verdicts(self, subtask: Subtask, checkpoint: str, episode_index: int, num_frames: int) -> list[Outcome]: ...
+
+    def __enter__(self) -> Station: ...
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None: ...
+
+
+class SimStation:
+    """The simulated rig, in process."""
+
+    pace = False  # physics advances with each command; nothing is gained by waiting for the wall clock
+    order = ("imagined", "real")  # the simulated clock stands still while the world model runs
+
+    def __init__(self, rig_path: str | Path, task: str) -> None:
+        from hw_drivers.sim.robot import SimRobot
+
+        self._robot = SimRobot(rig_path, task)
+
+    @property
+    def robot(self) -> Robot:
+        return self._robot
+
+    def start(self, subtask: Subtask, checkpoint: str, spec: ChunkSpec) -> Start:
+        return self._robot.reset(
+            seed=subtask.seed, subtask=subtask.index, task=subtask.task, history=spec.history, stride=spec.stride
+        )
+
+    def verdicts(self, subtask: Subtask, checkpoint: str, episode_index: int, num_frames: int) -> list[Outcome]:
+        check = self._robot.check_subtask(subtask.index)
+        return [Outcome(episode_index, SIM_JUDGE, "sim_state", check.success, num_frames)]
+
+    def __enter__(self) -> SimStation:
+        self._robot.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._robot.disconnect()
+
+
+class HardwareStation:
+    """A rig with a ``hardware:`` section: real devices, or (``hardware.fake``) the protocol fakes."""
+
+    pace = True
+    # Real branch first: its first chunk is computed from the start observation, which must be fresh
+    # (the safety filter refuses stale ones); the imagined branch has no clock and runs after.
+    order = ("real", "imagined")
+
+    def __init__(
+        self, rig_path: str | Path, operator: Operator | None = None, *, seed: int = 0, settle_s: float = 0.5
+    ) -> None:
+        self.rig_path = str(rig_path)
+        self.rig = RigConfig.load(rig_path)
+        if self.rig.hardware is None:
+            raise ValueError(f"rig {self.rig.name!r} has no 'hardware:' section; use SimStation for a simulated rig")
+        self.hw = self.rig.hardware
+        self.operator = operator or ConsoleOperator()
+        self.fake: Any = None
+        self._robot: Any = None
+        self._seed = seed
+        self.settle_s = settle_s
+
+    @property
+    def robot(self) -> Robot:
+        if self._robot is None:
+            raise RuntimeError("hardware station: not started (use it as a context manager)")
+        robot: Robot = self._robot
+        return robot
+
+    def __enter__(self) -> HardwareStation:
+        from hw_drivers.factory import build_robot
+
+        endpoints = None
+        try:
+            if self.hw.fake is not None:
+                from hw_drivers.fakes.rig import FakeRig
+
+                self.fake = FakeRig(self.rig_path, seed=self._seed)
+                endpoints = self.fake.start()
+            self._robot = build_robot(self.rig, endpoints)
+            self._robot.connect()
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            if self._robot is not None:
+                self._robot.disconnect()
+        finally:
+            self._robot = None
+            if self.fake is not None:
+                self.fake.stop()
+                self.fake = None
+
+    def start_pose(self) -> np.ndarray[Any, np.dtype[np.float64]]:
+        """The configured start pose, or (none configured) wherever the robot stands now."""
+        if self.hw.start_pose is not None:
+            return np.asarray(self.hw.start_pose, dtype=np.float64)
+        return np.asarray(self._robot.state(), dtype=np.float64)
+
+    def start(self, subtask: Subtask, checkpoint: str, spec: ChunkSpec) -> Start:
+        if self.fake is not None:  # the simulated scene stands in for the person setting it up
+            self.fake.reset(subtask.task, subtask.seed, subtask.index)
+        self.operator.set_up(subtask, checkpoint)
+        self._robot.move_to(self.start_pose(), speed=self.hw.start_speed)
+        # History: H_h frames at the policy's frame stride while the robot holds still at the start.
+        period = spec.stride / self.rig.control_rate_hz
+        frames: list[Observation] = []
+        for _ in range(spec.history):
+            frames.append(self._robot.observe())
+            time.sleep(period)
+        return Start(subtask=subtask, observation=self._robot.observe(), history=tuple(frames))
+
+    def verdicts(self, subtask: Subtask, checkpoint: str, episode_index: int, num_frames: int) -> list[Outcome]:
+        self._robot.stop()  # hold still while the person looks
+        # Let the last command finish (a gripper still opening at the final step) before judging: the
+        # simulated rig judges after exactly the executed steps, a real one after it came to rest.
+        time.sleep(self.settle_s)
+        out: list[Outcome] = []
+        if self.fake is not None:
+            check = self.fake.check()
+            out.append(Outcome(episode_index, SIM_JUDGE, "sim_state", bool(check["success"]), num_frames))
+        verdict = self.operator.judge(subtask, checkpoint)
+        if verdict is not None:
+            out.append(Outcome(episode_index, OPERATOR_JUDGE, "human", verdict, num_frames))
+        return out
+
+
+def open_station(rig_path: str | Path, task: str, operator: Operator | None = None) -> SimStation | HardwareStation:
+    """The station for ``rig_path``: hardware (or its fakes) when the file has a ``hardware:`` section."""
+    rig = RigConfig.load(rig_path)
+    if rig.hardware is not None:
+        return HardwareStation(rig_path, operator)
+    return SimStation(rig_path, task)
