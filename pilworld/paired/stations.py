@@ -162,9 +162,9 @@ class HardwareStation:
         return Start(subtask=subtask, observation=self._robot.observe(), history=tuple(frames))
 
     def verdicts(self, subtask: Subtask, checkpoint: str, episode_index: int, num_frames: int) -> list[Outcome]:
-        self._robot.stop()  # hold still while the person looks
-        # Let the last command finish (a gripper still opening at the final step) before judging: the
-        # simulated rig judges after exactly the executed steps, a real one after it came to rest.
+        # No new commands: the arms hold their last target while the person looks. Let that last
+        # command finish (a gripper still letting go at the final step) before judging; stopping the
+        # gripper where it is would leave it on the object.
         time.sleep(self.settle_s)
         out: list[Outcome] = []
         if self.fake is not None:
