@@ -92,6 +92,16 @@ def register(sub: Any) -> None:
     jd.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     jd.set_defaults(handler=_judges)
 
+    dr = benches.add_parser(
+        "drivers", help="hardware drivers against the protocol fakes: servo rate, bus round trips, camera fps"
+    )
+    dr.add_argument(
+        "--rig", type=Path, default=None, help="rig file with a hardware.fake section (default: the fake rig)"
+    )
+    dr.add_argument("--seconds", type=float, default=10.0, help="how long the robot is driven (default 10)")
+    dr.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    dr.set_defaults(handler=_drivers)
+
     hl = benches.add_parser("hallucination", help="hallucination detector on injected faults and clean episodes")
     hl.add_argument("dataset", type=Path, help="a dataset of real-branch episodes (e.g. from pilworld sim collect)")
     hl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
@@ -385,6 +395,20 @@ def _judges(args: argparse.Namespace) -> int:
     print(f"judges: image-only judge agrees with the checker on {r['agreement']} of {r['n']} real episodes")
     for task, t in r["per_task"].items():
         print(f"  {task}: {t['agreement']} of {t['n']}, confusion {t['confusion']}")
+    if args.json:
+        print(json.dumps(r))
+    return 0
+
+
+def _drivers(args: argparse.Namespace) -> int:
+    from pilworld.bench.drivers import FAKE_RIG, run_drivers_bench
+
+    r = run_drivers_bench(args.rig or FAKE_RIG, args.seconds, progress=not args.json)
+    print(
+        f"drivers: servo {r['servo_rate_hz']} Hz (target {r['servo_rate_target_hz']}), p99 period "
+        f"{r['servo_period_p99_ms']} ms; round trips: dynamixel {r['dynamixel_roundtrip_ms']} ms, "
+        f"robotiq {r['robotiq_roundtrip_ms']} ms; cameras {r['camera_fps']} fps (served {r['camera_fps_served']})"
+    )
     if args.json:
         print(json.dumps(r))
     return 0

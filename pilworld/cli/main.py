@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, calibrate, control_video, data, demo, paired, policy, report, sim, train
+from pilworld.cli import bench, calibrate, control_video, data, demo, paired, policy, report, robot, sim, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.register(sub)
     policy.register(sub)
     report.register(sub)
+    robot.register(sub)
     sim.register(sub)
     train.register(sub)
     return parser

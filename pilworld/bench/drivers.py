@@ -1,0 +1,112 @@
+"""``pilworld bench drivers``: the hardware drivers' timing against the protocol fakes.
+
+The whole robot runs as in a real branch: a :class:`~hw_drivers.dual_arm.DualArmRobot` built from the
+fake rig (``configs/rig/fake_dual_ur5e.yaml``) is commanded at the control rate with a slow joint
+sine while it is observed every Δ steps, for ``seconds``. Meanwhile the UR arms' servo loops, the
+grippers' I/O threads and the cameras' capture threads run as they would on hardware. Reported:
+
+* ``servo_rate_hz`` (each arm and the minimum) and ``servo_period_p99_ms`` — the 500 Hz servoJ loop;
+* ``dynamixel_roundtrip_ms`` / ``robotiq_roundtrip_ms`` — median of a polling read on the bus (p99 too);
+* ``camera_fps`` — frames received per second per camera (the fake serves ``hardware.fake.camera_fps``);
+* ``control_period_p99_ms`` — how evenly the control loop itself kept its period.
+
+The fakes do not model wire time (a real RS-485 round trip adds ~1–2 ms plus the adapter's latency
+timer), so the gripper figures are the drivers' own overhead.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from pilworld.bench.common import machine_info
+
+FAKE_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "fake_dual_ur5e.yaml"
+
+
+def _finite(x: float) -> float | None:
+    return None if not math.isfinite(x) else round(float(x), 3)
+
+
+def run_drivers_bench(
+    rig_path: str | Path = FAKE_RIG, seconds: float = 10.0, *, progress: bool = False
+) -> dict[str, Any]:
+    from hw_drivers.factory import build_robot
+    from hw_drivers.fakes.rig import FakeRig
+    from pilworld.config.rig import RigConfig
+
+    if seconds <= 0:
+        raise ValueError(f"seconds: expected > 0, got {seconds}")
+    rig = RigConfig.load(rig_path)
+    if rig.hardware is None or rig.hardware.fake is None:
+        raise ValueError(f"{rig_path}: the drivers bench needs a rig file with a 'hardware.fake' section")
+    with FakeRig(rig_path) as fake:
+        robot = build_robot(rig, fake.endpoints)
+        with robot:
+            q0 = robot.observe().state.astype(np.float64)
+            for arm in robot.arms.values():
+                arm.reset_servo_stats()  # type: ignore[attr-defined]
+            period = 1.0 / rig.control_rate_hz
+            periods: list[float] = []
+            t0 = t_prev = time.monotonic()
+            t_next = t0
+            step = 0
+            bar = tqdm(total=round(seconds), desc="drivers bench", unit="s", disable=not progress)
+            while (now := time.monotonic()) - t0 < seconds:
+                if now < t_next:
+                    time.sleep(t_next - now)
+                t_next += period
+                t = time.monotonic()
+                periods.append(t - t_prev)
+                t_prev = t
+                a = q0.copy()
+                a[[0, 7]] += 0.1 * math.sin(2 * math.pi * 0.25 * (t - t0))  # a slow sweep of both bases
+                robot.send_action(a)
+                step += 1
+                if step % 3 == 0:
+                    robot.observe()
+                bar.n = min(round(seconds), int(t - t0))
+                bar.refresh()
+            bar.close()
+            servo = {side: arm.servo_stats() for side, arm in robot.arms.items()}  # type: ignore[attr-defined]
+            grippers: dict[str, Any] = {}
+            for side, g in robot.grippers.items():
+                rt = g.roundtrip_ms()  # type: ignore[attr-defined]
+                median, p99 = (rt["median_ms"], rt["p99_ms"]) if isinstance(rt, dict) else (rt.median_ms, rt.p99_ms)
+                driver = getattr(rig.hardware.grippers, side).driver
+                grippers[driver] = {"side": side, "median_ms": _finite(median), "p99_ms": _finite(p99)}
+            fps = {name: round(cam.fps_measured(), 2) for name, cam in robot.cameras.items()}  # type: ignore[attr-defined]
+    p = np.asarray(periods[1:]) * 1000
+    return {
+        "rig": str(rig_path),
+        "seconds": seconds,
+        "servo_rate_target_hz": rig.hardware.arms.left.servo_rate_hz,
+        "servo_rate_hz": round(min(s.rate_hz for s in servo.values()), 2),
+        "servo_period_p99_ms": round(max(s.period_p99_ms for s in servo.values()), 3),
+        "servo": {
+            side: {
+                "rate_hz": round(s.rate_hz, 2),
+                "period_p50_ms": round(s.period_p50_ms, 3),
+                "period_p99_ms": round(s.period_p99_ms, 3),
+                "period_max_ms": round(s.period_max_ms, 3),
+                "missed_periods": s.missed_periods,
+                "cycles": s.cycles,
+            }
+            for side, s in servo.items()
+        },
+        "dynamixel_roundtrip_ms": grippers.get("dynamixel", {}).get("median_ms"),
+        "robotiq_roundtrip_ms": grippers.get("robotiq", {}).get("median_ms"),
+        "grippers": grippers,
+        "camera_fps": round(min(fps.values()), 2),
+        "camera_fps_per_camera": fps,
+        "camera_fps_served": rig.hardware.fake.camera_fps,
+        "control_rate_hz": rig.control_rate_hz,
+        "control_period_p50_ms": round(float(np.percentile(p, 50)), 3) if p.size else None,
+        "control_period_p99_ms": round(float(np.percentile(p, 99)), 3) if p.size else None,
+        "machine": machine_info(),
+    }
