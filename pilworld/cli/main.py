@@ -12,7 +12,20 @@ import sys
 from collections.abc import Sequence
 
 from pilworld import __version__
-from pilworld.cli import bench, calibrate, control_video, data, demo, paired, policy, report, robot, sim, train
+from pilworld.cli import (
+    annotate,
+    bench,
+    calibrate,
+    control_video,
+    data,
+    demo,
+    paired,
+    policy,
+    report,
+    robot,
+    sim,
+    train,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    annotate.register(sub)
     calibrate.register(sub)
     control_video.register(sub)
     demo.register(sub)

@@ -119,6 +119,10 @@ def compute_run_metrics(
             "method": "percentile; pairs (subtasks) resampled with replacement within each task and overall",
         },
     }
+    from pilworld.annotate.agreement import human_agreement  # here: annotate imports pilworld.metrics
+
+    origins = {int(r["episode_index"]): str(r.get("origin") or "") for r in store.episodes}
+    out["human_agreement"] = human_agreement(paired, origins, bootstrap=bootstrap, seed=seed)
     if single_step:
         out["single_step"] = single_step_metrics(store, paired.pairs, action_atol=action_atol, lpips=lpips)
     else:
