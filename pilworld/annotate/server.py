@@ -365,7 +365,9 @@ class AnnotationServer:
         return f"{self.url}/login?token={quote(token, safe='')}"
 
     def start(self) -> AnnotationServer:
-        self._thread = threading.Thread(target=self.httpd.serve_forever, name="annotate-http", daemon=True)
+        self._thread = threading.Thread(
+            target=self.httpd.serve_forever, kwargs={"poll_interval": 0.05}, name="annotate-http", daemon=True
+        )
         self._thread.start()
         return self
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from html import escape
 from typing import Any
 
+from pilworld.report.agreement_view import agreement_section
 from pilworld.report.metrics_view import DASH, fmt_with_ci
 
 CHECK, CROSS = "✓", "✗"
@@ -388,6 +389,7 @@ def render_page(page: PageData, branches: Sequence[str]) -> str:
     ]
     body += [f'<p class="note">{_e(n)}</p>' for n in page.notes]
     body.append(_metrics_section(page))
+    body.append(agreement_section(page.metrics))  # "" without human verdicts
     body.append(_charts_section(page))
     body.append(
         f'<section id="pairs"><h2>Pairs</h2><p class="note" id="pairs-note" data-left-out="{page.left_out}">'
