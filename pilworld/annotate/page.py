@@ -232,7 +232,7 @@ _JS = r"""
   function AuthError(message) { this.message = message; }
 
   async function api(method, url, body) {
-    var opts = { method: method, credentials: 'same-origin', headers: { 'Accept': 'application/json' } };
+    var opts = { method: method, headers: { 'Accept': 'application/json' } };
     if (body !== undefined) {
       opts.headers['Content-Type'] = 'application/json';
       opts.body = JSON.stringify(body);
@@ -593,8 +593,8 @@ _JS = r"""
     var r = parseFloat($('rate').value) || 1;
     videos.forEach(function (v) { v.playbackRate = r; });
   });
-  $('mark').addEventListener('click', markHere);
-  $('clear-mark').addEventListener('click', function () { setMark(null); });
+  $('mark').addEventListener('click', function () { showError(''); showStatus(''); markHere(); });
+  $('clear-mark').addEventListener('click', function () { showError(''); showStatus(''); setMark(null); });
   $('goto-mark').addEventListener('click', function () { if (S.marked !== null) { step(S.marked - S.frame); } });
   $('label-form').addEventListener('change', function () { showError(''); showStatus(''); });
   $('label-form').addEventListener('submit', function (e) { e.preventDefault(); save(); });
