@@ -24,7 +24,7 @@ from urllib.parse import parse_qs, quote, urlsplit
 
 from pilworld.annotate.catalog import MAX_BODY, Catalog, LabelError, open_dataset, parse_label
 from pilworld.annotate.media import MediaCache
-from pilworld.annotate.store import AnnotationStore
+from pilworld.annotate.store import DB_FILE, AnnotationStore
 
 COOKIE = "pilworld_judge"
 STATIC_DIR = Path(__file__).with_name("static")
@@ -343,12 +343,12 @@ class AnnotationServer:
             raise ValueError(f"--port: expected 0..65535, got {port!r}")
         self.run_dir = Path(run_dir)
         open_dataset(self.run_dir)  # fail on a folder that is not a dataset before creating the database in it
+        if judges is None and not (self.run_dir / DB_FILE).is_file():
+            raise ValueError(f"--judges: {self.run_dir} has no judges yet; say how many (--judges N)")
         self.store = AnnotationStore(self.run_dir)
         self.tokens: dict[int, str] = {}
         if judges is not None:
             self.tokens = self.store.ensure_judges(judges, new_tokens=new_tokens)
-        elif not self.store.judges():
-            raise ValueError(f"--judges: {self.run_dir} has no judges yet; say how many (--judges N)")
         self.app = App(self.run_dir, self.store)
         handler = type("BoundHandler", (Handler,), {"app": self.app})
         self.httpd = ThreadingHTTPServer((host, port), handler)

@@ -11,7 +11,7 @@ import pytest
 from pilworld.annotate.store import DB_FILE, AnnotationStore, Label, StoreError, token_hash
 
 THREADS = 8
-WRITES = 25
+WRITES = 15
 
 
 def test_concurrent_writers_lose_nothing(tmp_path: Path) -> None:
