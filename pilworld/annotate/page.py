@@ -68,7 +68,7 @@ main { overflow-y: auto; padding: 10px 16px 16px; }
 }
 #views { display: grid; grid-template-columns: repeat(auto-fit, minmax(200px, 1fr)); gap: 8px; }
 #views figure { margin: 0; background: #111827; border-radius: 6px; overflow: hidden; position: relative; }
-#views video { display: block; width: 100%; height: 40vh; max-height: 360px; object-fit: contain; background: #111827; }
+#views video { display: block; width: 100%; height: 44vh; max-height: 420px; object-fit: contain; background: #111827; }
 #views figcaption {
   position: absolute; left: 6px; top: 6px; padding: 1px 6px; border-radius: 4px;
   background: rgba(0, 0, 0, .6); color: #fff; font-size: 12px;
@@ -105,7 +105,8 @@ legend { font-weight: 600; padding: 0 4px; }
 #mark-value[data-marked="1"] { color: var(--bad); }
 #category:required:invalid { border-color: var(--bad); }
 .actions { display: flex; flex-direction: column; justify-content: space-between; gap: 8px; margin-left: auto; }
-.actions .row { display: flex; gap: 8px; }
+.actions .row { display: flex; gap: 8px; align-items: center; }
+.dirty { color: #9a3412; font-style: italic; }
 .messages { min-height: 22px; margin-top: 8px; }
 #error { color: var(--bad); font-weight: 600; white-space: pre-wrap; }
 #status { color: var(--ok); }
@@ -192,6 +193,7 @@ _BODY = r"""
       <div class="actions">
         <div class="row">
           <button type="submit" class="btn primary" id="save">Save label</button>
+          <span id="dirty" class="dirty" hidden>unsaved changes</span>
         </div>
         <div class="row">
           <button type="button" class="btn" id="prev">&larr; Previous item</button>
@@ -224,6 +226,7 @@ _JS = r"""
     playing: false,
     saving: false,
     loadSeq: 0,
+    drafts: {},       // item id -> unsaved form state, kept while the judge looks at other items
     done: 0,
     total: 0
   };
@@ -479,6 +482,35 @@ _JS = r"""
     if (f !== null && label.category) { $('category').value = label.category; }
   }
 
+  function formState() {
+    var ok = $('success').checked, bad = $('failure').checked;
+    return {
+      success: ok ? true : (bad ? false : null),
+      first_hallucination_frame: S.marked,
+      category: S.marked === null ? null : ($('category').value || null)
+    };
+  }
+
+  function sameLabel(a, b) {
+    var x = a || { success: null, first_hallucination_frame: null, category: null };
+    var y = b || { success: null, first_hallucination_frame: null, category: null };
+    return x.success === y.success && x.first_hallucination_frame === y.first_hallucination_frame &&
+      (x.category || null) === (y.category || null);
+  }
+
+  function isDirty() { return !!S.item && !sameLabel(formState(), S.item.label); }
+
+  function updateDirty() {
+    var dirty = isDirty();
+    $('dirty').hidden = !dirty;
+    document.body.dataset.dirty = dirty ? '1' : '0';
+  }
+
+  function keepDraft() {
+    if (!S.item) { return; }
+    if (isDirty()) { S.drafts[S.item.id] = formState(); } else { delete S.drafts[S.item.id]; }
+  }
+
   async function save() {
     if (!S.item || S.saving) { return; }
     showError(''); showStatus('');
@@ -501,7 +533,9 @@ _JS = r"""
     try {
       var res = await api('PUT', '/api/items/' + encodeURIComponent(item.id) + '/label', body);
       item.label = body;
+      delete S.drafts[item.id];
       S.queue[index].done = true;
+      updateDirty();
       setProgress(res.done, res.total);
       var next = nextUnlabelled(index);
       if (next >= 0 && next !== index) {
@@ -524,6 +558,7 @@ _JS = r"""
     if (i < 0 || i >= S.queue.length) { return; }
     var seq = ++S.loadSeq;
     pauseAll();
+    keepDraft();
     S.index = i;
     renderQueue();
     showError(''); showStatus('');
@@ -539,12 +574,15 @@ _JS = r"""
       scrub.max = String(lastFrame());
       $('frame-last').textContent = String(lastFrame());
       fillCategories(item.categories || []);
-      fillForm(item.label);
+      var draft = S.drafts[item.id];
+      fillForm(draft || item.label);
+      updateDirty();
       buildVideos(item);
       showFrame(0);
       $('prev').disabled = i === 0;
       $('next').disabled = i === S.queue.length - 1;
       history.replaceState(null, '', '#item-' + (i + 1));
+      if (draft) { showStatus('Your unsaved changes to this item are back; press Save to keep them.'); }
       document.body.dataset.item = String(i + 1);
     } catch (e) {
       if (seq === S.loadSeq) { fail(e); }
@@ -569,9 +607,9 @@ _JS = r"""
     } else if (k === 'm' || k === 'M') {
       e.preventDefault(); markHere();
     } else if (k === 's' || k === 'S') {
-      e.preventDefault(); $('success').checked = true;
+      e.preventDefault(); $('success').checked = true; updateDirty();
     } else if (k === 'f' || k === 'F') {
-      e.preventDefault(); $('failure').checked = true;
+      e.preventDefault(); $('failure').checked = true; updateDirty();
     }
   }
 
@@ -579,6 +617,7 @@ _JS = r"""
     if (!S.item) { return; }
     if (S.playing) { pause(); }
     setMark(S.frame);
+    updateDirty();
   }
 
   // ---------------------------------------------------------------- wiring
@@ -594,9 +633,15 @@ _JS = r"""
     videos.forEach(function (v) { v.playbackRate = r; });
   });
   $('mark').addEventListener('click', function () { showError(''); showStatus(''); markHere(); });
-  $('clear-mark').addEventListener('click', function () { showError(''); showStatus(''); setMark(null); });
+  $('clear-mark').addEventListener('click', function () {
+    showError(''); showStatus(''); setMark(null); updateDirty();
+  });
   $('goto-mark').addEventListener('click', function () { if (S.marked !== null) { step(S.marked - S.frame); } });
-  $('label-form').addEventListener('change', function () { showError(''); showStatus(''); });
+  $('label-form').addEventListener('change', function () { showError(''); showStatus(''); updateDirty(); });
+  window.addEventListener('beforeunload', function (e) {
+    keepDraft();
+    if (Object.keys(S.drafts).length) { e.preventDefault(); e.returnValue = ''; }
+  });
   $('label-form').addEventListener('submit', function (e) { e.preventDefault(); save(); });
   $('prev').addEventListener('click', function () { openItem(S.index - 1); });
   $('next').addEventListener('click', function () { openItem(S.index + 1); });

@@ -253,6 +253,22 @@ def test_two_judges_label_a_run_in_chromium(
                 assert max(times) - min(times) < 1e-3, f"views out of sync after pause: {times}"
                 assert frame_shown(page) >= 3
                 assert times[0] == pytest.approx((frame_shown(page) + 0.5) / fps, abs=1e-3)
+                # Keys F and M; an unsaved change survives a visit to another item (a draft), not a save.
+                paused_at = frame_shown(page)
+                page.keyboard.press("f")
+                page.keyboard.press("m")
+                assert page.is_checked("#failure") and page.inner_text("#mark-value") == f"frame {paused_at}"
+                assert page.is_visible("#dirty")
+                page.click("#next")
+                wait_item(page, 1)
+                assert not page.is_checked("#failure") and page.inner_text("#mark-value") == "none"
+                assert not page.is_visible("#dirty")
+                page.click("#prev")
+                wait_item(page, 0)
+                assert page.is_checked("#failure") and page.inner_text("#mark-value") == f"frame {paused_at}"
+                assert page.is_visible("#dirty") and "unsaved changes" in page.inner_text("#status")
+                assert progress(page) == (0, EPISODES)
+                page.click("#clear-mark")
 
             if judge == 2 and position == 1:
                 # A server error is shown verbatim: a category the server does not know.
@@ -395,3 +411,25 @@ def check_export(run_dir: Path, server: AnnotationServer, saved: dict[int, list[
     assert agreement["episodes_labelled"] == {"human_1": EPISODES, "human_2": EPISODES}
     assert agreement["episodes_shared"] == EPISODES
     assert 'id="human"' in result.report.read_text(encoding="utf-8")  # the report's "Human judges" section
+
+
+@pytest.mark.xfail(
+    reason="backend: pilworld/annotate/media.py encode_blinded builds its BitStreamFilterContext before the "
+    "encoder opens, so the MP4s come out at PyAV's default 640×480 (every view stretched); remove this marker "
+    "once fixed",
+    strict=False,
+)
+def test_views_are_decoded_at_the_rig_image_size(app_server: AnnotationServer, browser: Browser) -> None:
+    """Chromium decodes every view at the rig's image size: a stretched view distorts what judges look at."""
+    from pilworld.config.rig import RigConfig
+
+    size = RigConfig.load(RIG).image_size
+    context = browser.new_context(viewport=VIEWPORT)
+    try:
+        page = context.new_page()
+        page.goto(app_server.login_url(app_server.tokens[1]))
+        wait_for(page, "document.body.dataset.ready === '1'", "the page to start")
+        info = wait_item(page, int(page.evaluate("document.body.dataset.item")) - 1)
+        assert [(w, h) for w, h, _ in info["sizes"]] == [(size.width, size.height)] * len(info["views"])
+    finally:
+        context.close()
