@@ -512,7 +512,7 @@ _JS = r"""
   }
 
   async function save() {
-    if (!S.item || S.saving) { return; }
+    if (!S.item || S.saving || document.body.dataset.loading) { return; }  // never while another item loads
     showError(''); showStatus('');
     var ok = $('success').checked, bad = $('failure').checked;
     if (!ok && !bad) { showError('Choose Success or Failure first.'); $('success').focus(); return; }
