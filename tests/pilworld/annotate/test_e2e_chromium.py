@@ -12,6 +12,7 @@ Skipped when no Chromium is installed (``scripts/install-chromium.sh`` installs 
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import time
@@ -39,6 +40,7 @@ pytestmark = pytest.mark.skipif(
 RIG = "configs/rig/sim_dual_ur5e.yaml"  # the rig of conftest.pristine_run (2 checkpoints × 1 subtask, R = 1)
 METRICS_KWARGS: dict[str, Any] = {"single_step": False, "bootstrap": 0}  # the figures checked here, quickly
 EPISODES = 4
+SCREENSHOT_ENV = "PILWORLD_ANNOTATE_SCREENSHOT"  # a path: where to copy the mid-annotation screenshot
 VIEWPORT: ViewportSize = {"width": 1280, "height": 800}
 BLINDING = ("scripted_step", "imagined", "origin", "checkpoint", "real_branch", "seed")
 VIDEOS = "Array.from(document.querySelectorAll('#views video'))"
@@ -371,6 +373,8 @@ def test_two_judges_label_a_run_in_chromium(
     image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
     assert image is not None and image.shape == (800, 1280, 3)
     assert len(np.unique(image.reshape(-1, 3), axis=0)) > 500, "too few colours: blank page or no video frames"
+    if os.environ.get(SCREENSHOT_ENV):  # keep a copy where asked (docs, a reviewer)
+        shutil.copyfile(screenshot, os.environ[SCREENSHOT_ENV])
 
     check_export(run_dir, app_server, saved)
 
