@@ -29,31 +29,50 @@ CRF = 20  # visually clean at 128 px; judges look for small artefacts
 KEYFRAME_EVERY = 10  # short GOPs: scrubbing to any frame decodes at most this many
 
 
-def encode_blinded(frames: NDArray[np.uint8], path: Path, fps: float) -> None:
-    """H.264 yuv420p MP4 of RGB ``frames`` (N, H, W, 3) with no metadata; odd sizes padded by a black pixel."""
+def _encode(frames: NDArray[np.uint8], path: Path, fps: float) -> None:
     n, h, w, _ = frames.shape
-    pad_h, pad_w = h % 2, w % 2
-    if pad_h or pad_w:
-        frames = np.pad(frames, ((0, 0), (0, pad_h), (0, pad_w), (0, 0)))
-    options = {"movflags": "+faststart", "fflags": "+bitexact"}
-    with av.open(str(path), mode="w", format="mp4", options=options) as container:
-        container.metadata.clear()
+    with av.open(str(path), mode="w", format="mp4", options={"fflags": "+bitexact"}) as container:
         stream = container.add_stream("libx264", rate=Fraction(fps).limit_denominator(1001))
-        stream.width, stream.height = w + pad_w, h + pad_h
+        stream.width, stream.height = w, h
         stream.pix_fmt = "yuv420p"
         stream.options = {"crf": str(CRF), "preset": "medium", "g": str(KEYFRAME_EVERY)}
-        # remove SEI units (type 6): x264 writes its version and full settings string there
-        bsf = av.bitstream.BitStreamFilterContext("filter_units=remove_types=6", stream, stream)
         for i in range(n):
-            frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frames[i]), format="rgb24")
-            for packet in stream.encode(frame):
-                for out in bsf.filter(packet):
-                    container.mux(out)
+            for packet in stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(frames[i]), format="rgb24")):
+                container.mux(packet)
         for packet in stream.encode():
-            for out in bsf.filter(packet):
-                container.mux(out)
-        for out in bsf.filter(None):
-            container.mux(out)
+            container.mux(packet)
+
+
+def _strip(src_path: Path, path: Path) -> None:
+    """Remux ``src_path`` without SEI units (x264 writes its version and settings there) and with no metadata.
+
+    A second pass because the filter copies its input stream's parameters when it is made: on an
+    encoder stream that has not produced a packet yet they are PyAV's defaults (640×480), which then
+    end up in the file; a stream read back from a file has the true ones from the start.
+    """
+    options = {"movflags": "+faststart", "fflags": "+bitexact"}
+    with av.open(str(src_path)) as src, av.open(str(path), mode="w", format="mp4", options=options) as dst:
+        dst.metadata.clear()
+        ins = src.streams.video[0]
+        out = dst.add_stream_from_template(ins)
+        bsf = av.bitstream.BitStreamFilterContext("filter_units=remove_types=6", ins, out)
+        for packet in src.demux(ins):
+            for filtered in bsf.filter(packet if packet.size else None):  # the last, empty packet flushes
+                filtered.stream = out
+                dst.mux(filtered)
+
+
+def encode_blinded(frames: NDArray[np.uint8], path: Path, fps: float) -> None:
+    """H.264 yuv420p MP4 of RGB ``frames`` (N, H, W, 3) with no metadata; odd sizes padded by a black pixel."""
+    _, h, w, _ = frames.shape
+    if h % 2 or w % 2:  # 4:2:0 chroma needs even sizes; pad rather than resize so pixels keep their place
+        frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)))
+    raw = path.with_name(path.name + ".raw.mp4")
+    try:
+        _encode(frames, raw, fps)
+        _strip(raw, path)
+    finally:
+        raw.unlink(missing_ok=True)
 
 
 class MediaCache:
