@@ -27,6 +27,7 @@ from pilworld.data.reader import EpisodeStore
 CACHE_DIR = ".annotate_cache"
 CRF = 20  # visually clean at 128 px; judges look for small artefacts
 KEYFRAME_EVERY = 10  # short GOPs: scrubbing to any frame decodes at most this many
+ENCODING = 2  # part of every cache file name: bump when the encoding changes, so stale files are never served
 
 
 def _encode(frames: NDArray[np.uint8], path: Path, fps: float) -> None:
@@ -86,7 +87,7 @@ class MediaCache:
         self._guard = threading.Lock()
 
     def path(self, episode: int, view: str) -> Path:
-        return self.dir / f"{self.store.derive(f'media:{episode}:{view}')[:32]}.mp4"
+        return self.dir / f"{self.store.derive(f'media:v{ENCODING}:{episode}:{view}')[:32]}.mp4"
 
     def get(self, episode: int, view: str) -> Path:
         """The blinded MP4 of one episode's view, encoding it now if needed."""
