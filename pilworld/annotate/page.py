@@ -155,8 +155,8 @@ _BODY = r"""
         aria-keyshortcuts="ArrowRight">&#9654;&#9654;</button>
       <label for="scrub">Frame</label>
       <input type="range" id="scrub" min="0" max="0" step="1" value="0">
-      <span class="frame-readout" aria-live="off">frame <output id="frame" for="scrub">0</output>
-        / <span id="frame-last">0</span></span>
+      <span class="frame-readout" aria-live="off">frame
+        <output id="frame" for="scrub" aria-label="Current frame">0</output> / <span id="frame-last">0</span></span>
       <label for="rate">Speed</label>
       <select id="rate">
         <option value="0.25">0.25×</option>
