@@ -62,7 +62,7 @@ def plan_for(judge: int, position: int, num_frames: int) -> Plan:
     success = (position % 2 == 0) == (judge == 1)
     marked = {1: (1,), 2: (0, 3)}[judge]
     if position in marked:
-        return Plan(success, frame=min(3 + position, num_frames - 1), category=None)  # category: the first offered
+        return Plan(success, frame=min(3 + position, num_frames - 1))  # category: chosen from the page's list
     return Plan(success)
 
 
@@ -71,7 +71,7 @@ def plan_for(judge: int, position: int, num_frames: int) -> Plan:
 
 @pytest.fixture(scope="module")
 def run_dir(pristine_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A copy of the package's 4-episode paired run, judged by the image-only judge, with metrics.json (as
+    """A copy of conftest's 4-episode paired run, judged by the image-only judge, with metrics.json (as
     ``pilworld demo`` leaves a run: the state in which human judging starts)."""
     from pilworld.config.rig import RigConfig
     from pilworld.judges.base import judge_dataset
