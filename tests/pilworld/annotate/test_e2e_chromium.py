@@ -417,12 +417,6 @@ def check_export(run_dir: Path, server: AnnotationServer, saved: dict[int, list[
     assert 'id="human"' in result.report.read_text(encoding="utf-8")  # the report's "Human judges" section
 
 
-@pytest.mark.xfail(
-    reason="backend: pilworld/annotate/media.py encode_blinded builds its BitStreamFilterContext before the "
-    "encoder opens, so the MP4s come out at PyAV's default 640×480 (every view stretched); remove this marker "
-    "once fixed",
-    strict=False,
-)
 def test_views_are_decoded_at_the_rig_image_size(app_server: AnnotationServer, browser: Browser) -> None:
     """Chromium decodes every view at the rig's image size: a stretched view distorts what judges look at."""
     from pilworld.config.rig import RigConfig
