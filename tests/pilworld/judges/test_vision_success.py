@@ -214,21 +214,28 @@ def test_bench_on_a_collected_store(tmp_path: Path, rig: RigConfig) -> None:
 @pytest.mark.slow
 def test_acceptance_on_fresh_seeds(tmp_path: Path, rig: RigConfig) -> None:
     """Issue #7: ≥ 95 % agreement with the checker on ≥ 100 real-branch subtasks of seeds reserved for judge
-    validation (3,000,000+), never used to tune the judge."""
+    validation — the two fresh sets of docs/judges.md (3,000,100+ and 3,000,200+, 240 subtasks) pooled;
+    3,000,000–3,000,002 were looked at while the judge was developed and are not used."""
     from pilworld.bench.judges import run_judge_bench
     from pilworld.collection.collect import collect
 
-    root = tmp_path / "judge_val"
-    collect(
-        root,
-        rig_path=str(SIM_RIG),
-        tasks=list(TASK_SPECS),
-        checkpoints=[f"scripted_step_{s}" for s in ("01k", "02k", "05k", "10k", "30k")],
-        episodes=3,
-        seed0=3_000_000,
-        workers=2,
-        progress=False,
-    )
-    report = run_judge_bench(root, rig)
-    assert report["n"] >= 100
-    assert report["agreement"] >= 0.95, report["disagreements"]
+    agree = n = 0
+    for seed0 in (3_000_100, 3_000_200):
+        root = tmp_path / f"judge_val_{seed0}"
+        collect(
+            root,
+            rig_path=str(SIM_RIG),
+            tasks=list(TASK_SPECS),
+            checkpoints=[f"scripted_step_{s}" for s in ("01k", "02k", "05k", "10k", "30k")],
+            episodes=3,
+            seed0=seed0,
+            workers=2,
+            progress=False,
+        )
+        report = run_judge_bench(root, rig)
+        n += report["n"]
+        agree += round(report["agreement"] * report["n"])
+        for task in ("sort_cubes", "stack_blocks"):  # every disagreement so far was a nested bowl
+            assert report["per_task"][task]["agreement"] >= 0.95, report["disagreements"]
+    assert n >= 100
+    assert agree / n >= 0.95, f"{agree} of {n}"
