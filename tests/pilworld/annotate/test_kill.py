@@ -96,6 +96,8 @@ def test_sigkill_loses_no_acknowledged_label(run: Path) -> None:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
     assert len(acked) == 8 and len(pending) <= 2
 
     proc2, url2, fresh = _start(run, "--judges", "2")
