@@ -16,13 +16,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import pyarrow as pa
-
 from pilworld.annotate.catalog import open_dataset
 from pilworld.annotate.store import DB_FILE, AnnotationStore, StoredLabel, StoreError
 from pilworld.data import layout
-from pilworld.data.atomic import write_parquet
-from pilworld.data.outcomes import SCHEMA, Outcome, _locked, read_outcomes
+from pilworld.data.outcomes import Outcome, replace_judge_outcomes
 
 
 @dataclass
@@ -70,19 +67,8 @@ def to_outcomes(labels: Iterable[StoredLabel], num_frames: dict[int, int]) -> li
 
 
 def replace_judges(root: Path, judges: set[str], outcomes: list[Outcome]) -> int:
-    """Drop every row of ``judges`` and add ``outcomes``, atomically; returns the rows dropped.
-
-    ``record_outcomes`` only adds or replaces (episode, judge) rows, so this rewrites the table itself,
-    under the outcomes module's own lock so a judge recording meanwhile waits rather than being lost.
-    """
-    with _locked(root):
-        old = read_outcomes(root)
-        keep = [o for o in old if o.judge_id not in judges]
-        rows = {(o.episode_index, o.judge_id): o for o in [*keep, *outcomes]}
-        table = pa.Table.from_pylist([rows[k].to_row() for k in sorted(rows)], schema=SCHEMA)
-        write_parquet(root / layout.OUTCOMES, table)
-    new = {(o.episode_index, o.judge_id) for o in outcomes}
-    return sum(1 for o in old if o.judge_id in judges and (o.episode_index, o.judge_id) not in new)
+    """Drop every row of ``judges`` and add ``outcomes``, atomically; returns the rows dropped."""
+    return replace_judge_outcomes(root, judges, outcomes)
 
 
 def export_labels(

@@ -151,6 +151,24 @@ def record_outcomes(root: str | Path, outcomes: Iterable[Outcome], *, num_episod
     return len(rows)
 
 
+def replace_judge_outcomes(root: str | Path, judges: set[str], outcomes: Iterable[Outcome]) -> int:
+    """Drop every row of ``judges`` and add ``outcomes`` in one locked rewrite; returns the rows dropped.
+
+    :func:`record_outcomes` only adds or replaces (episode, judge) rows; a judge whose verdicts were
+    withdrawn (a person who cleared a label) needs its rows replaced as a whole.
+    """
+    root = Path(root)
+    new_rows = list(outcomes)
+    with _locked(root):
+        old = read_outcomes(root)
+        keep = [o for o in old if o.judge_id not in judges]
+        rows = {(o.episode_index, o.judge_id): o for o in [*keep, *new_rows]}
+        table = pa.Table.from_pylist([rows[k].to_row() for k in sorted(rows)], schema=SCHEMA)
+        write_parquet(root / layout.OUTCOMES, table)
+    new = {(o.episode_index, o.judge_id) for o in new_rows}
+    return sum(1 for o in old if o.judge_id in judges and (o.episode_index, o.judge_id) not in new)
+
+
 def summarize(outcomes: list[Outcome]) -> dict[str, Any]:
     """Per judge: verdicts, success rate and mean t_h / T (the judge's HFR over its episodes)."""
     by_judge: dict[str, list[Outcome]] = {}
