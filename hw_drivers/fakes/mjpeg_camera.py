@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import html
-import ipaddress
 import socket
 import threading
 import time
@@ -34,18 +33,10 @@ from numpy.typing import NDArray
 
 from hw_drivers.fakes.backend import RigBackend
 from hw_drivers.fakes.faults import FaultSwitch
+from pilworld.config.network import is_loopback
 
 BOUNDARY = "pilworldframe"
 _STOP_JOIN_S = 2.0  # bound on stop(): handler threads get this long to notice the closed sockets
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def encode_jpeg(rgb: NDArray[np.uint8], quality: int) -> bytes:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-import ipaddress
 import json
 import re
 import threading
@@ -25,6 +24,7 @@ from urllib.parse import parse_qs, quote, urlsplit
 from pilworld.annotate.catalog import MAX_BODY, Catalog, LabelError, open_dataset, parse_label
 from pilworld.annotate.media import MediaCache
 from pilworld.annotate.store import DB_FILE, AnnotationStore
+from pilworld.config.network import is_loopback
 
 COOKIE = "pilworld_judge"
 STATIC_DIR = Path(__file__).with_name("static")
@@ -63,15 +63,6 @@ class HttpError(Exception):
         self.status = status
         self.field = field
         self.headers = headers or {}
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def app_page() -> str:

@@ -19,7 +19,6 @@ lock because policies keep per-episode state.
 from __future__ import annotations
 
 import http
-import ipaddress
 import logging
 import threading
 import time
@@ -34,6 +33,7 @@ from websockets.frames import CloseCode
 from websockets.http11 import Request, Response
 from websockets.sync.server import Server, ServerConnection, serve
 
+from pilworld.config.network import is_loopback
 from pilworld.policies.base import Policy
 from pilworld.policies.openpi.wire import (
     PILWORLD_KEY,
@@ -47,15 +47,6 @@ from pilworld.policies.openpi.wire import (
 logger = logging.getLogger(__name__)
 
 ERROR_CLOSE_REASON = "Internal server error. Traceback included in previous frame."  # openpi's wording
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def _health_check(connection: ServerConnection, request: Request) -> Response | None:
