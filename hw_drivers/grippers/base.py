@@ -8,6 +8,9 @@ An I/O failure in the thread is stored and raised (typed, :mod:`hw_drivers.error
 
 from __future__ import annotations
 
+import math
+import statistics
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -21,6 +24,23 @@ class GripperStatus:
     object_detected: bool  # the fingers stopped on something (Robotiq gOBJ 1/2; Dynamixel: current at the cap)
     fault: str  # "" or the device's fault, decoded
     timestamp: float  # time.monotonic() of the reading
+
+
+@dataclass(frozen=True)
+class RoundTripStats:
+    """Round trips of a driver's polling read (request written → reply parsed): how long the bus takes."""
+
+    count: int
+    median_ms: float  # NaN before the first
+    p99_ms: float
+
+    @classmethod
+    def from_seconds(cls, samples: Iterable[float]) -> RoundTripStats:
+        s = sorted(samples)
+        if not s:
+            return cls(0, math.nan, math.nan)
+        p99 = s[min(len(s) - 1, math.ceil(0.99 * len(s)) - 1)]
+        return cls(len(s), statistics.median(s) * 1e3, p99 * 1e3)
 
 
 @runtime_checkable

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import logging
 import math
-import statistics
 import termios
 import threading
 import time
@@ -50,7 +49,7 @@ from hw_drivers.errors import (
     RobotError,
     StaleObservationError,
 )
-from hw_drivers.grippers.base import GripperStatus
+from hw_drivers.grippers.base import GripperStatus, RoundTripStats
 from hw_drivers.grippers.calibration import TickMapping
 
 log = logging.getLogger(__name__)
@@ -76,15 +75,6 @@ CALIBRATION_SLACK = 0.1  # fraction of the travel the fingers may stand outside 
 GRASP_TICKS = 20  # further than this from the goal, stopped, current at the cap = holding something
 GRASP_CURRENT = 0.9  # fraction of the cap that counts as "at the cap"
 IO_ERRORS = (OSError, termios.error)  # pyserial's SerialException is an OSError; tcflush raises termios.error
-
-
-@dataclass(frozen=True)
-class RoundTripStats:
-    """Round trips of the polling read (one GroupSyncRead): how long the bus takes to answer."""
-
-    count: int
-    median_ms: float
-    p99_ms: float
 
 
 @dataclass(frozen=True)
@@ -267,11 +257,7 @@ class DynamixelGripper:
     def roundtrip_ms(self) -> RoundTripStats:
         """Median and 99th percentile of the last ≤2000 polling reads (NaN before the first)."""
         with self._lock:
-            samples = sorted(self._roundtrips)
-        if not samples:
-            return RoundTripStats(0, math.nan, math.nan)
-        p99 = samples[min(len(samples) - 1, math.ceil(0.99 * len(samples)) - 1)]
-        return RoundTripStats(len(samples), statistics.median(samples) * 1e3, p99 * 1e3)
+            return RoundTripStats.from_seconds(self._roundtrips)
 
     def __enter__(self) -> DynamixelGripper:
         self.connect()

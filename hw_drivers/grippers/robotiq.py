@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import statistics
 import termios
 import threading
 import time
@@ -37,7 +36,7 @@ from hw_drivers.errors import (
     StaleObservationError,
 )
 from hw_drivers.grippers import modbus
-from hw_drivers.grippers.base import GripperStatus
+from hw_drivers.grippers.base import GripperStatus, RoundTripStats
 
 COMMAND_ADDRESS = 1000
 STATUS_ADDRESS = 2000
@@ -218,14 +217,10 @@ class RobotiqGripper:
             )
         return status
 
-    def roundtrip_ms(self) -> dict[str, float]:
-        """Status-read round trips so far (request written → reply parsed): median, p99 [ms] and count."""
+    def roundtrip_ms(self) -> RoundTripStats:
+        """Status-read round trips so far (request written → reply parsed): count, median and p99 [ms]."""
         with self._lock:
-            samples = sorted(self._roundtrips)
-        if not samples:
-            return {"median_ms": math.nan, "p99_ms": math.nan, "count": 0.0}
-        p99 = samples[min(len(samples) - 1, math.ceil(0.99 * len(samples)) - 1)]
-        return {"median_ms": statistics.median(samples) * 1e3, "p99_ms": p99 * 1e3, "count": float(len(samples))}
+            return RoundTripStats.from_seconds(self._roundtrips)
 
     def __enter__(self) -> RobotiqGripper:
         self.connect()

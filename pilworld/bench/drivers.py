@@ -77,9 +77,8 @@ def run_drivers_bench(
             grippers: dict[str, Any] = {}
             for side, g in robot.grippers.items():
                 rt = g.roundtrip_ms()  # type: ignore[attr-defined]
-                median, p99 = (rt["median_ms"], rt["p99_ms"]) if isinstance(rt, dict) else (rt.median_ms, rt.p99_ms)
                 driver = getattr(rig.hardware.grippers, side).driver
-                grippers[driver] = {"side": side, "median_ms": _finite(median), "p99_ms": _finite(p99)}
+                grippers[driver] = {"side": side, "median_ms": _finite(rt.median_ms), "p99_ms": _finite(rt.p99_ms)}
             fps = {name: round(cam.fps_measured(), 2) for name, cam in robot.cameras.items()}  # type: ignore[attr-defined]
     p = np.asarray(periods[1:]) * 1000
     return {

@@ -194,7 +194,7 @@ def test_not_connected_before_connect() -> None:
         g.set_target(0.5)
     with pytest.raises(DeviceNotConnectedError):
         g.status(1.0)
-    assert math.isnan(g.roundtrip_ms()["median_ms"])
+    assert math.isnan(g.roundtrip_ms().median_ms)
 
 
 def test_reconnect() -> None:
@@ -225,7 +225,7 @@ def test_tracks_targets() -> None:
         with pytest.raises(ValueError, match="finite"):
             g.set_target(math.nan)
         stats = g.roundtrip_ms()
-        assert stats["count"] > 10 and 0 < stats["median_ms"] <= stats["p99_ms"]
+        assert stats.count > 10 and 0 < stats.median_ms <= stats.p99_ms
 
 
 def test_calibration_matches_a_230_count_stroke() -> None:
