@@ -69,7 +69,7 @@ def _camera_reading(camera: Any) -> str:
 
 def check_robot(rig_path: str | Path) -> list[DeviceHealth]:
     """One :class:`DeviceHealth` per arm, gripper and camera of the rig file."""
-    from hw_drivers.factory import build_arms, build_cameras, build_grippers
+    from hw_drivers.factory import build_arms, build_cameras, build_grippers, camera_source, gripper_port
 
     rig = RigConfig.load(rig_path)
     if rig.hardware is None:
@@ -92,10 +92,10 @@ def check_robot(rig_path: str | Path) -> list[DeviceHealth]:
         grippers = build_grippers(rig, endpoints)
         for side, gripper in grippers.items():
             cfg = getattr(hw.grippers, side)
-            port = endpoints.gripper_ports[side] if endpoints is not None else cfg.port
+            port = gripper_port(rig, side, endpoints)
             report.append(_probe(f"{side} gripper", cfg.driver, port, gripper, _gripper_reading))
         for name, camera in build_cameras(rig, endpoints).items():
-            source = str(getattr(camera, "source", hw.cameras[name].source))
+            source = str(camera_source(rig, name, endpoints))
             report.append(_probe(name, "opencv", source, camera, _camera_reading))
         return report
     finally:

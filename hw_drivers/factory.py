@@ -8,13 +8,13 @@ fakes' endpoints (:class:`hw_drivers.fakes.rig.FakeEndpoints`).
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import TYPE_CHECKING
 
 from hw_drivers.arm import Arm
 from hw_drivers.cameras.base import Camera
 from hw_drivers.dual_arm import DualArmRobot
 from hw_drivers.grippers.base import Gripper
+from hw_drivers.safety import dual_arm_speed_caps
 from pilworld.config.hardware import AUTO, DynamixelGripperConfig, HardwareConfig
 from pilworld.config.rig import RigConfig
 
@@ -22,8 +22,6 @@ if TYPE_CHECKING:
     from hw_drivers.fakes.rig import FakeEndpoints
 
 SIDES = ("left", "right")
-ARM_SPEED = math.pi  # rad/s, a UR e-Series joint's maximum (as hw_drivers.sim.robot)
-GRIP_SPEED = 2.0  # normalised opening per second
 
 
 def _hardware(rig: RigConfig) -> HardwareConfig:
@@ -33,6 +31,26 @@ def _hardware(rig: RigConfig) -> HardwareConfig:
             "or add the drivers (see configs/rig/real_dual_ur5e.yaml)"
         )
     return rig.hardware
+
+
+def gripper_port(rig: RigConfig, side: str, endpoints: FakeEndpoints | None = None) -> str:
+    """The serial port of the ``side`` gripper: as configured, or the fake rig's pty for ``auto``."""
+    port = str(getattr(_hardware(rig).grippers, side).port)
+    if port != AUTO:
+        return port
+    if endpoints is None:
+        raise ValueError(f"hardware.grippers.{side}.port is 'auto' but no fake rig is running")
+    return endpoints.gripper_ports[side]
+
+
+def camera_source(rig: RigConfig, name: str, endpoints: FakeEndpoints | None = None) -> int | str:
+    """The source of camera ``name``: as configured, or the fake rig's MJPEG stream for ``auto``."""
+    source = _hardware(rig).cameras[name].source
+    if source != AUTO:
+        return source
+    if endpoints is None:
+        raise ValueError(f"hardware.cameras.{name}.source is 'auto' but no fake rig is running")
+    return endpoints.camera_urls[name]
 
 
 def build_arms(rig: RigConfig, endpoints: FakeEndpoints | None = None) -> dict[str, Arm]:
@@ -61,11 +79,7 @@ def build_grippers(rig: RigConfig, endpoints: FakeEndpoints | None = None) -> di
     grippers: dict[str, Gripper] = {}
     for side in SIDES:
         cfg = getattr(hw.grippers, side)
-        port = cfg.port
-        if port == AUTO:
-            if endpoints is None:
-                raise ValueError(f"hardware.grippers.{side}.port is 'auto' but no fake rig is running")
-            port = endpoints.gripper_ports[side]
+        port = gripper_port(rig, side, endpoints)
         if isinstance(cfg, DynamixelGripperConfig):
             from hw_drivers.grippers.dynamixel import DynamixelGripper
 
@@ -105,13 +119,13 @@ def build_cameras(rig: RigConfig, endpoints: FakeEndpoints | None = None) -> dic
     cameras: dict[str, Camera] = {}
     for name in rig.cameras:
         cfg = hw.cameras[name]
-        source = cfg.source
-        if source == AUTO:
-            if endpoints is None:
-                raise ValueError(f"hardware.cameras.{name}.source is 'auto' but no fake rig is running")
-            source = endpoints.camera_urls[name]
         cameras[name] = OpenCVCamera(
-            name, source, width=cfg.width, height=cfg.height, fps=cfg.fps, reconnect=cfg.reconnect
+            name,
+            camera_source(rig, name, endpoints),
+            width=cfg.width,
+            height=cfg.height,
+            fps=cfg.fps,
+            reconnect=cfg.reconnect,
         )
     return cameras
 
@@ -121,7 +135,7 @@ def build_robot(rig: RigConfig, endpoints: FakeEndpoints | None = None) -> DualA
     hw = _hardware(rig)
     # The same joint speed caps as the simulated rig: a UR e-Series joint's maximum, and a full
     # gripper stroke in 0.5 s. The safety filter slows every command to them.
-    spec = dataclasses.replace(rig.robot_spec(), max_joint_speed=tuple([ARM_SPEED] * 6 + [GRIP_SPEED]) * 2)
+    spec = dataclasses.replace(rig.robot_spec(), max_joint_speed=dual_arm_speed_caps())
     return DualArmRobot(
         spec,
         build_arms(rig, endpoints),

@@ -34,6 +34,14 @@ from numpy.typing import NDArray
 from hw_drivers.errors import SafetyViolationError, StaleObservationError
 from pilworld.types import RobotSpec
 
+ARM_SPEED = math.pi  # rad/s, a UR e-Series joint's maximum
+GRIP_SPEED = 2.0  # normalised opening per second (full stroke in 0.5 s)
+
+
+def dual_arm_speed_caps() -> tuple[float, ...]:
+    """``RobotSpec.max_joint_speed`` of the 14-d dual-arm layout: every arm joint, then the grip, per arm."""
+    return tuple([ARM_SPEED] * 6 + [GRIP_SPEED]) * 2
+
 
 @dataclass(frozen=True)
 class SafetyLimits:

@@ -14,7 +14,6 @@ another resolution with the same field of view (``render(camera, width, height)`
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -24,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hw_drivers.robot import DeviceNotConnectedError
+from hw_drivers.safety import dual_arm_speed_caps
 from hw_drivers.sim.board_mount import BoardMount
 from hw_drivers.sim.gl import make_renderer, mujoco
 from hw_drivers.sim.poses import HOME_Q14
@@ -33,8 +33,6 @@ from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
 
 DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
-ARM_SPEED = math.pi  # rad/s, a UR e-Series joint's maximum
-GRIP_SPEED = 2.0  # normalised opening per second (full stroke in 0.5 s)
 SETTLE_S = 0.5  # physics time given to a new layout before the lead-in
 
 
@@ -68,7 +66,7 @@ class SimRobot:
         self.task = make_task(task) if isinstance(task, str) else task
         self.board_mount = board_mount  # a calibration board on one gripper (visual only), or None
         base = self.rig.robot_spec()
-        speeds = tuple([ARM_SPEED] * 6 + [GRIP_SPEED]) * 2
+        speeds = dual_arm_speed_caps()
         self._spec = RobotSpec(
             joint_names=base.joint_names,
             lower=base.lower,
