@@ -217,7 +217,7 @@ class SimBackend:
         self._seed, self._subtask = seed, subtask
         self._camera_period = 1.0 / camera_fps
         self._lock = threading.Lock()
-        self._calls: queue.Queue[tuple[Callable[[Any], Any], Future[Any]]] = queue.Queue()
+        self._calls: queue.Queue[tuple[Callable[[Any], Any], Future[Any], bool]] = queue.Queue()
         self._stop = threading.Event()
         self._ready = threading.Event()
         self._error: BaseException | None = None
@@ -292,7 +292,7 @@ class SimBackend:
     def _serve_calls(self, robot: Any) -> None:
         while True:
             try:
-                fn, fut = self._calls.get_nowait()
+                fn, fut, moves_world = self._calls.get_nowait()
             except queue.Empty:
                 return
             if not fut.set_running_or_notify_cancel():
@@ -301,6 +301,9 @@ class SimBackend:
                 result = fn(robot)
             except BaseException as e:
                 fut.set_exception(e)
+                continue
+            if not moves_world:  # a reading: the world, the targets and the frames are as they were
+                fut.set_result(result)
                 continue
             # A reset moves the world: targets follow it, so nothing yanks the arms back.
             state = robot.state().astype(np.float64)
@@ -314,7 +317,7 @@ class SimBackend:
     def _fail_pending(self, error: BaseException | None) -> None:
         while True:
             try:
-                _, fut = self._calls.get_nowait()
+                _, fut, _ = self._calls.get_nowait()
             except queue.Empty:
                 return
             fut.set_exception(BackendError(f"simulation stopped: {error}" if error else "backend closed"))
@@ -331,11 +334,15 @@ class SimBackend:
     def cameras(self) -> tuple[str, ...]:
         return self._cameras
 
-    def call(self, fn: Callable[[Any], T], timeout: float = 30.0) -> T:
-        """``fn(sim_robot)`` on the simulation thread; its result (or exception)."""
+    def call(self, fn: Callable[[Any], T], timeout: float = 30.0, *, moves_world: bool = False) -> T:
+        """``fn(sim_robot)`` on the simulation thread; its result (or exception).
+
+        ``moves_world``: ``fn`` changes the scene (a reset), so the arm and gripper targets are set to
+        where the robot now stands and the cameras are rendered again; a reading leaves both alone.
+        """
         self._check()
         fut: Future[T] = Future()
-        self._calls.put((fn, fut))
+        self._calls.put((fn, fut, moves_world))
         return fut.result(timeout)
 
     def arm_q(self, side: str) -> NDArray[np.float64]:

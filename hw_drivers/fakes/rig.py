@@ -136,7 +136,7 @@ def _handle(backend: Any, faults: dict[str, Any], op: str, kw: dict[str, Any]) -
             start = robot.reset(seed=seed, subtask=subtask, task=task, history=0)
             return {"state": start.observation.state.tolist(), "instruction": robot.subtask.instruction}
 
-        return backend.call(reset)
+        return backend.call(reset, moves_world=True)
     if op == "check":
         settle = float(kw.get("settle_s", 1.0))
 
