@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import threading
-from fractions import Fraction
 from pathlib import Path
 
 import av
@@ -23,25 +22,12 @@ from numpy.typing import NDArray
 
 from pilworld.annotate.store import AnnotationStore
 from pilworld.data.reader import EpisodeStore
+from pilworld.io.video import write_mp4
 
 CACHE_DIR = ".annotate_cache"
 CRF = 20  # visually clean at 128 px; judges look for small artefacts
 KEYFRAME_EVERY = 10  # short GOPs: scrubbing to any frame decodes at most this many
 ENCODING = 2  # part of every cache file name: bump when the encoding changes, so stale files are never served
-
-
-def _encode(frames: NDArray[np.uint8], path: Path, fps: float) -> None:
-    n, h, w, _ = frames.shape
-    with av.open(str(path), mode="w", format="mp4", options={"fflags": "+bitexact"}) as container:
-        stream = container.add_stream("libx264", rate=Fraction(fps).limit_denominator(1001))
-        stream.width, stream.height = w, h
-        stream.pix_fmt = "yuv420p"
-        stream.options = {"crf": str(CRF), "preset": "medium", "g": str(KEYFRAME_EVERY)}
-        for i in range(n):
-            for packet in stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(frames[i]), format="rgb24")):
-                container.mux(packet)
-        for packet in stream.encode():
-            container.mux(packet)
 
 
 def _strip(src_path: Path, path: Path) -> None:
@@ -65,12 +51,9 @@ def _strip(src_path: Path, path: Path) -> None:
 
 def encode_blinded(frames: NDArray[np.uint8], path: Path, fps: float) -> None:
     """H.264 yuv420p MP4 of RGB ``frames`` (N, H, W, 3) with no metadata; odd sizes padded by a black pixel."""
-    _, h, w, _ = frames.shape
-    if h % 2 or w % 2:  # 4:2:0 chroma needs even sizes; pad rather than resize so pixels keep their place
-        frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)))
     raw = path.with_name(path.name + ".raw.mp4")
     try:
-        _encode(frames, raw, fps)
+        write_mp4(frames, raw, fps, CRF, keyframe_every=KEYFRAME_EVERY, bitexact=True)
         _strip(raw, path)
     finally:
         raw.unlink(missing_ok=True)

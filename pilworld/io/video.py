@@ -25,8 +25,20 @@ def _check_frames(frames: NDArray[np.uint8]) -> None:
         raise ValueError(f"frames: expected uint8 (N, H, W, 3) with N > 0, got {frames.dtype} {frames.shape}")
 
 
-def write_mp4(frames: NDArray[np.uint8], path: str | Path, fps: float = 10.0, crf: int = 18) -> Path:
-    """Encode RGB frames (N, H, W, 3) as H.264 (yuv420p; odd sizes are padded by one black pixel)."""
+def write_mp4(
+    frames: NDArray[np.uint8],
+    path: str | Path,
+    fps: float = 10.0,
+    crf: int = 18,
+    *,
+    keyframe_every: int | None = None,
+    bitexact: bool = False,
+) -> Path:
+    """Encode RGB frames (N, H, W, 3) as H.264 (yuv420p; odd sizes are padded by one black pixel).
+
+    ``keyframe_every``: the GOP length (short GOPs make seeking cheap; default: the encoder's).
+    ``bitexact``: no muxer version tag in the container.
+    """
     _check_frames(frames)
     if not fps > 0:
         raise ValueError(f"fps: expected a positive frame rate, got {fps!r}")
@@ -38,11 +50,12 @@ def write_mp4(frames: NDArray[np.uint8], path: str | Path, fps: float = 10.0, cr
     if pad_h or pad_w:
         frames = np.pad(frames, ((0, 0), (0, pad_h), (0, pad_w), (0, 0)))
     rate = Fraction(fps).limit_denominator(1001)
-    with av.open(str(path), mode="w") as container:
+    with av.open(str(path), mode="w", options={"fflags": "+bitexact"} if bitexact else {}) as container:
         stream = container.add_stream("libx264", rate=rate)
         stream.width, stream.height = w + pad_w, h + pad_h
         stream.pix_fmt = "yuv420p"
-        stream.options = {"crf": str(crf), "preset": "medium"}
+        gop = {} if keyframe_every is None else {"g": str(keyframe_every)}
+        stream.options = {"crf": str(crf), "preset": "medium", **gop}
         for i in range(n):
             frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frames[i]), format="rgb24")
             for packet in stream.encode(frame):
