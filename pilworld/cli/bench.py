@@ -76,7 +76,7 @@ def register(sub: Any) -> None:
     cb.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     cb.set_defaults(handler=_calibration)
 
-    pr = benches.add_parser("paired", help="wall time per paired subtask, real and imagined branch separately")
+    pr = benches.add_parser("paired-timing", help="wall time per paired subtask, real and imagined branch separately")
     pr.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     pr.add_argument("--task", default="sort_cubes", help="task (default sort_cubes)")
     pr.add_argument("--checkpoint", default="", help="policy checkpoint (default: the rig's best)")
@@ -84,7 +84,50 @@ def register(sub: Any) -> None:
     pr.add_argument("--rounds", type=int, default=5, help="closed-loop rounds per subtask (default 5)")
     pr.add_argument("--world-model", default="", help="world-model folder (default: the packaged checkpoint)")
     pr.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
-    pr.set_defaults(handler=_paired)
+    pr.set_defaults(handler=_paired_timing)
+
+    pt = benches.add_parser(
+        "paired", help="the paper's table: SR_real, SR_imag, |ΔSR|, HFR, Pearson/MMRV for ours, the baseline, ablations"
+    )
+    pt.add_argument("--quick", action="store_true", help="3 tasks × 2 checkpoints × 3 subtasks, ours + baseline")
+    pt.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    pt.add_argument(
+        "--out", type=Path, default=None, help="run folders (default bench_runs/paired-quick|full); resumed"
+    )
+    pt.add_argument("--variants", default="", help="comma-separated variants (default: by mode; see docs/RESULTS.md)")
+    pt.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 3 / 20)")
+    pt.add_argument("--seed", type=int, default=None, help="first layout seed (default 6000000)")
+    pt.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    pt.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/paired.png)")
+    pt.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    pt.set_defaults(handler=_paired)
+
+    sa = benches.add_parser(
+        "speed-accuracy", help="presets × resolution × sampling steps: chunk latency vs single-step error and |ΔSR|"
+    )
+    sa.add_argument("--quick", action="store_true", help="single-step and latency only, 24 held-out clips")
+    sa.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    sa.add_argument("--steps", default="", help="comma-separated sampling steps (default 1,2,4,8,16)")
+    sa.add_argument("--clips", type=int, default=None, help="held-out clips per point (default 24 quick / 96)")
+    sa.add_argument("--repeats", type=int, default=10, help="timed calls per point (default 10)")
+    sa.add_argument("--out", type=Path, default=Path("bench_runs") / "speed-accuracy", help="closed-loop run folders")
+    sa.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    sa.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/speed_accuracy.png)")
+    sa.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    sa.set_defaults(handler=_speed_accuracy)
+
+    st = benches.add_parser(
+        "stability", help="horizon sweep, failure faithfulness, counterfactuals, calibration error, OOD actions"
+    )
+    st.add_argument("--quick", action="store_true", help="1 subtask per task × checkpoint, 1 probe start each")
+    st.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    st.add_argument("--subtasks", type=int, default=None, help="20-round pairs per task × checkpoint (default 1 / 5)")
+    st.add_argument("--starts", type=int, default=None, help="probe starts per task × checkpoint (default 1 / 4)")
+    st.add_argument("--out", type=Path, default=None, help="run folders (default bench_runs/stability-quick|full)")
+    st.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    st.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/stability.png)")
+    st.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    st.set_defaults(handler=_stability)
 
     jd = benches.add_parser("judges", help="image-only success judge vs the simulator's checker on a dataset")
     jd.add_argument("dataset", type=Path, help="a dataset with sim_checker verdicts (e.g. from pilworld sim collect)")
@@ -360,8 +403,8 @@ def _world_model(args: argparse.Namespace) -> int:
     return 0
 
 
-def _paired(args: argparse.Namespace) -> int:
-    from pilworld.bench.paired import bench_paired
+def _paired_timing(args: argparse.Namespace) -> int:
+    from pilworld.bench.paired_timing import bench_paired
 
     for name in ("subtasks", "rounds"):
         if getattr(args, name) < 1:
@@ -382,6 +425,134 @@ def _paired(args: argparse.Namespace) -> int:
             f"policy {b['policy_ms_per_round']['median']} ms and env {b['env_ms_per_round']['median']} ms per round, "
             f"realtime x{b['realtime_factor']}"
         )
+    if args.json:
+        print(json.dumps(r))
+    return 0
+
+
+def _pct(x: Any) -> str:
+    return "—" if x is None else f"{100 * float(x):.1f}"
+
+
+def _num(x: Any) -> str:
+    return "—" if x is None else f"{float(x):.2f}"
+
+
+def _paired(args: argparse.Namespace) -> int:
+    from pilworld.bench.charts import paired_table_chart
+    from pilworld.bench.paired import run_paired_bench
+
+    if args.subtasks is not None and args.subtasks < 1:
+        raise ValueError(f"--subtasks: expected at least 1, got {args.subtasks}")
+    out = args.out or Path("bench_runs") / ("paired-quick" if args.quick else "paired-full")
+    names = [n.strip() for n in args.variants.split(",") if n.strip()] or None
+    r = run_paired_bench(
+        out=out,
+        rig=args.rig,
+        quick=args.quick,
+        variants=names,
+        subtasks=args.subtasks,
+        seed=args.seed,
+        workers=args.workers,
+        progress=not args.json,
+    )
+    chart = paired_table_chart(r["variants"], r["targets"], args.chart or Path(out) / "paired.png")
+    r["chart"] = str(chart)
+    p = r["protocol"]
+    print(
+        f"paired ({'quick' if r['quick'] else 'full'}): {len(p['tasks'])} tasks × {len(p['checkpoints'])} checkpoints "
+        f"× {p['subtasks']} subtasks, R={p['rounds']}, seeds from {p['seed0']}"
+    )
+    print(f"  {'variant':<15}{'SR_real':>8}{'SR_imag':>8}{'|ΔSR|':>7}{'HFR':>6}{'Pearson':>8}{'MMRV':>6}  head PSNR")
+    for name, row in r["variants"].items():
+        o = row["overall"]
+        head = (row["single_step"]["per_view"] or {}).get("cam_high", {})
+        print(
+            f"  {name:<15}{_pct(o.get('sr_real')):>8}{_pct(o.get('sr_imag')):>8}{_pct(o.get('abs_delta_sr')):>7}"
+            f"{_num(o.get('hfr')):>6}{_num(o.get('pearson')):>8}{_num(o.get('mmrv')):>6}"
+            f"  {_num(head.get('psnr_pooled'))}"
+        )
+    print(f"  targets: |ΔSR| ≤ 5 points, HFR ≥ 0.85, Pearson ≥ 0.95; chart {chart}")
+    if args.json:
+        print(json.dumps(r))
+    return 0
+
+
+def _speed_accuracy(args: argparse.Namespace) -> int:
+    from pilworld.bench.charts import speed_accuracy_chart
+    from pilworld.bench.speed_accuracy import run_speed_accuracy
+
+    steps = [int(s) for s in args.steps.split(",") if s.strip()] or None
+    if steps and min(steps) < 1:
+        raise ValueError(f"--steps: expected integers >= 1, got {args.steps!r}")
+    if args.clips is not None and args.clips < 1:
+        raise ValueError(f"--clips: expected at least 1, got {args.clips}")
+    r = run_speed_accuracy(
+        rig=args.rig,
+        quick=args.quick,
+        steps=steps,
+        clips=args.clips,
+        repeats=args.repeats,
+        out=args.out,
+        workers=args.workers,
+        progress=not args.json,
+    )
+    chart = speed_accuracy_chart(r["points"], r["front_ids"], args.chart or args.out / "speed_accuracy.png")
+    r["chart"] = str(chart)
+    print(f"speed-accuracy ({'quick' if r['quick'] else 'full'}): {len(r['points'])} points, chart {chart}")
+    print(f"  {'point':<16}{'latency ms':>11}{'x realtime':>11}{'head PSNR':>10}{'SSIM':>7}{'|ΔSR|':>7}  front")
+    for p in r["points"]:
+        print(
+            f"  {p['id']:<16}{p['chunk_latency_ms']:>11.1f}{p['realtime_factor']:>11.1f}{_num(p['psnr_head']):>10}"
+            f"{_num(p['ssim_head']):>7}{_pct(p['abs_delta_sr']):>7}  {'*' if p['id'] in r['front_ids'] else ''}"
+        )
+    d = r["default"]
+    print(
+        f"  default (knee): {d['preset']} {d['size']}, {d['steps']} steps, {d['chunk_latency_ms']:.1f} ms — {d['rule']}"
+    )
+    if args.json:
+        print(json.dumps(r))
+    return 0
+
+
+def _stability(args: argparse.Namespace) -> int:
+    from pilworld.bench.charts import stability_chart
+    from pilworld.bench.stability import run_stability
+
+    for name in ("subtasks", "starts"):
+        if getattr(args, name) is not None and getattr(args, name) < 1:
+            raise ValueError(f"--{name}: expected at least 1, got {getattr(args, name)}")
+    out = args.out or Path("bench_runs") / ("stability-quick" if args.quick else "stability-full")
+    r = run_stability(
+        rig=args.rig,
+        quick=args.quick,
+        out=out,
+        subtasks=args.subtasks,
+        starts=args.starts,
+        workers=args.workers,
+        progress=not args.json,
+    )
+    chart = stability_chart(r, args.chart or out / "stability.png")
+    r["chart"] = str(chart)
+    print(f"stability ({'quick' if r['quick'] else 'full'}): chart {chart}")
+    print("  horizon R   " + "".join(f"{row['rounds']:>7}" for row in r["horizon"]["rows"]))
+    print("  HFR         " + "".join(f"{_num(row['hfr']):>7}" for row in r["horizon"]["rows"]))
+    f = r["failure_faithfulness"]
+    print(
+        f"  failure faithfulness: {_pct(f['imagined_also_failed'])} % of {f['real_failures']} real failures also "
+        f"failed imagined; {_pct(f['imagined_also_succeeded'])} % of {f['real_successes']} successes succeeded"
+    )
+    for row in r["counterfactual"]["rows"]:
+        head = row["cam_high"]
+        print(f"  counterfactual policy vs {row['alternative']}: head MSE ratio pred/real {_num(head['ratio_median'])}")
+    print(
+        "  calibration shift px → head PSNR: "
+        + ", ".join(f"{row['shift_px']:g}: {_num(row['psnr_head'])}" for row in r["calibration"]["rows"])
+    )
+    print(
+        "  OOD actions → head PSNR: "
+        + ", ".join(f"{row['kind']}: {_num(row['psnr_head'])}" for row in r["ood_actions"]["rows"])
+    )
     if args.json:
         print(json.dumps(r))
     return 0

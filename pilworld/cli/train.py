@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.cli.bench import DEFAULT_RIG
+from pilworld.cli.control_video import parse_size
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -44,6 +45,7 @@ def register(sub: Any) -> None:
     pre = stages.add_parser("pretrain", help="stage 1: the frame VAE, then Ψ_θ, on all tasks")
     _common(pre)
     pre.add_argument("--preset", default="small", help="model preset: tiny, small (default), base")
+    pre.add_argument("--size", default=None, help="WIDTHxHEIGHT replacing the preset's image size (e.g. 64x64)")
     pre.add_argument("--tasks", default="", help="comma-separated tasks (default: all in the dataset)")
     pre.add_argument("--vae-steps", type=int, default=2000, help="frame-VAE steps before Ψ_θ (default 2000)")
     pre.add_argument("--vae-batch", type=int, default=32, help="frames per VAE step (default 32)")
@@ -132,6 +134,7 @@ def _run(args: argparse.Namespace) -> int:
         out=str(args.out),
         rig=str(args.rig),
         preset="" if finetune else args.preset,
+        size=None if finetune or args.size is None else parse_size(args.size),
         init=str(args.init) if finetune else None,
         tasks=(args.task,) if finetune else tuple(t for t in args.tasks.split(",") if t),
         success_fraction=args.success_fraction,

@@ -19,6 +19,7 @@ from pilworld.data.reader import EpisodeStore
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, LEVEL
 from pilworld.metrics.pairs import load_pairs
 from pilworld.metrics.ranking import ranking_metrics
+from pilworld.metrics.ranking_ci import ranking_intervals
 from pilworld.metrics.single_step import DEFAULT_ACTION_ATOL, single_step_metrics
 from pilworld.metrics.success import PairScore, group_metrics, judge_summary, score_pairs
 
@@ -96,6 +97,7 @@ def compute_run_metrics(
         if reason:
             overall[f"{key}_task_mean_reason"] = reason
     overall |= _ranking(settings)
+    overall["ranking_ci95"] = ranking_intervals(scores, resamples=bootstrap, seed=seed) if bootstrap else None
     overall["n_settings"] = len(settings)
     overall["n_tasks"] = len(tasks)
 

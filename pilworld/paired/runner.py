@@ -39,6 +39,7 @@ from pilworld.data.writer import EpisodeWriter
 from pilworld.envs import ImaginedEnv, RobotEnv, SafetyFilter
 from pilworld.paired.episodes import rollout_episode
 from pilworld.paired.operator import Operator
+from pilworld.paired.real_source import RealBranchSource
 from pilworld.paired.stations import open_station
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
@@ -84,6 +85,11 @@ class PairedConfig:
     steps: int | None = None  # sampling steps; None = the model's default
     video_mode: str = "lossless"  # bit-exact frames, so the two stored start frames compare byte for byte
     spec: ChunkSpec = field(default_factory=ChunkSpec)
+    # A paired run with the same rig, seed and spec whose real branches are copied instead of re-run
+    # (pilworld.paired.real_source); "" = run them. Not compared on resume: a copy equals a re-run.
+    real_from: str = ""
+    history: bool = True  # False: the no-history ablation at inference (the model's latent memory hidden)
+    resize: bool = False  # True: a model of another image size runs through ResizedWorldModel
 
     def __post_init__(self) -> None:
         if isinstance(self.subtasks, bool) or not isinstance(self.subtasks, int) or self.subtasks < 1:
@@ -139,19 +145,48 @@ def stored_branches(root: Path) -> dict[str, set[str]]:
     return done
 
 
-def _check_config(root: Path, cfg: PairedConfig) -> None:
+# Settings that may differ on resume: more subtasks extend a run; a copied real branch equals a re-run one.
+_UNCOMPARED = ("subtasks", "real_from")
+
+
+def _config_defaults() -> dict[str, Any]:
+    from dataclasses import MISSING, fields
+
+    return {f.name: f.default for f in fields(PairedConfig) if f.default is not MISSING}
+
+
+def same_rig(a: Any, b: Any) -> bool:
+    """Two rig settings name the same file (a relative and an absolute path to it are the same rig)."""
+    if a == b:
+        return True
+    if not isinstance(a, str) or not isinstance(b, str):
+        return False
+    return Path(a).resolve() == Path(b).resolve()
+
+
+def _check_config(root: Path, cfg: PairedConfig, *, write: bool = True) -> None:
+    """Refuse a folder holding a run with other settings; with ``write``, claim the folder for ``cfg``."""
     path = root / CONFIG_FILE
     want = json.loads(json.dumps(cfg.to_json()))
     if path.is_file():
-        have = json.loads(path.read_text())
-        diff = sorted(k for k in set(have) | set(want) if k != "subtasks" and have.get(k) != want.get(k))
+        # A key an older run's file lacks had its present default then (new settings default to the old behaviour).
+        have = {**_config_defaults(), **json.loads(path.read_text())}
+        diff = sorted(
+            k
+            for k in set(have) | set(want)
+            if k not in _UNCOMPARED
+            and have.get(k) != want.get(k)
+            and not (k == "rig" and same_rig(have.get(k), want.get(k)))
+        )
         if diff:
             raise ValueError(
                 f"{root}: holds a paired run with different settings ({', '.join(diff)}); "
                 "use another --out folder, or the same arguments to resume"
             )
-    root.mkdir(parents=True, exist_ok=True)
-    write_json(path, want)
+        want["rig"] = have["rig"]  # keep the spelling the run was started with
+    if write:
+        root.mkdir(parents=True, exist_ok=True)
+        write_json(path, want)
 
 
 def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel, str | None]:
@@ -169,7 +204,17 @@ def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel
         if cfg.adapter not in names:
             raise ValueError(f"adapter: {cfg.adapter!r} is not in {path} (has {names or 'none'})")
         adapter = cfg.adapter
-    model = load_world_model(path, adapter=adapter)
+    model: WorldModel = load_world_model(path, adapter=adapter)
+    if not cfg.history:
+        without = getattr(model, "without_history", None)
+        if without is None:
+            raise ValueError(f"history: the model in {path} has no history memory to hide")
+        model = without()
+    size = (rig.image_size.width, rig.image_size.height)
+    if cfg.resize and (model.info.width, model.info.height) != size:
+        from pilworld.world_model.resized import ResizedWorldModel
+
+        model = ResizedWorldModel(model, height=size[1], width=size[0])
     info = model.info
     if set(info.views) != set(rig.cameras):
         raise ValueError(
@@ -178,7 +223,7 @@ def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel
     if (info.width, info.height) != (rig.image_size.width, rig.image_size.height):
         raise ValueError(
             f"world model {path} works at {info.width}x{info.height}, rig {rig.name!r} renders "
-            f"{rig.image_size.width}x{rig.image_size.height}"
+            f"{rig.image_size.width}x{rig.image_size.height} (resize=True runs it resized)"
         )
     if info.future != cfg.spec.frames:
         raise ValueError(
@@ -218,13 +263,21 @@ def paired_run(
     tasks = cfg.tasks  # validates the names
     models = {t: load_model(cfg, rig, t) for t in tasks}  # fails before anything is written
     store_spec = dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)
-    _check_config(root, cfg)
+    _check_config(root, cfg, write=False)
     plan: list[PairedSubtask] = []
     for t in tasks:
         spec_t = make_task(t)
         plan += plan_subtasks(t, cfg.subtasks, cfg.seed, cfg.checkpoints, spec_t.num_subtasks, spec_t.instruction)
     done = stored_branches(root)
     todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS)]
+    need_real = [p for p in todo if "real" not in done.get(p.pair_id, set())]
+    reference = RealBranchSource(cfg.real_from, cfg) if cfg.real_from and need_real else None
+    missing = [p.pair_id for p in need_real if reference is not None and not reference.has(p.pair_id)]
+    if missing:  # fail before anything is written, naming what to run first
+        raise ValueError(
+            f"real_from: {cfg.real_from} lacks the real branch of {len(missing)} pair(s), e.g. {missing[0]}"
+        )
+    _check_config(root, cfg)  # claims the folder only now that every check passed
     gamma = ControlVideo.from_rig(rig, cfg.spec)
     policies = {c: make_policy(c, rig, cfg.spec) for c in cfg.checkpoints}
     t_start = time.monotonic()
@@ -248,6 +301,11 @@ def paired_run(
             }
             for origin in station.order:
                 if origin in have:
+                    continue
+                if origin == "real" and reference is not None:
+                    reference.copy(pair.pair_id, writer, root)
+                    if on_branch is not None:
+                        on_branch(pair, origin)
                     continue
                 policy.reset(seed=pair.seed)
                 if origin == "imagined":

@@ -51,6 +51,7 @@ class TrainConfig:
     out: str  # run folder
     rig: str  # rig config (Γ needs its kinematics and head camera)
     preset: str = "small"
+    size: tuple[int, int] | None = None  # (width, height) replacing the preset's image size; None = the preset's
     init: str | None = None  # finetune: the stage-1 model folder
     tasks: tuple[str, ...] = ()  # pretrain: all when empty; finetune: the target task
     success_fraction: float | None = None  # share of clips from successful episodes (1.0 = success-only)
@@ -88,6 +89,8 @@ class TrainConfig:
                 raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
         if self.vae_steps < 0 or self.warmup < 0:
             raise ValueError("vae_steps and warmup: expected >= 0")
+        if self.size is not None and (len(self.size) != 2 or any(int(v) < 1 for v in self.size)):
+            raise ValueError(f"size: expected (width, height) >= 1, got {self.size!r}")
         if self.success_fraction is not None and not 0.0 <= self.success_fraction <= 1.0:
             raise ValueError(f"success_fraction: expected a value in [0, 1], got {self.success_fraction!r}")
 
@@ -174,7 +177,7 @@ class Trainer:
         if c.stage == "finetune":
             assert c.init is not None
             return load_model(c.init).train()
-        base = preset(c.preset)
+        base = preset(c.preset) if c.size is None else preset(c.preset, width=c.size[0], height=c.size[1])
         cond = replace(
             base.conditioning, history=c.history, control_video=c.control_video, action_tokens=c.action_tokens
         )

@@ -199,10 +199,6 @@ def test_resume_ignores_real_from(source: Path, copied: tuple[Path, dict[str, An
         paired_run(_cfg(run, real_from=str(source), resize=True), progress=False)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="paired_run writes paired_config.json (_check_config) before RealBranchSource validates real_from",
-)
 def test_a_refused_real_from_leaves_the_out_folder_unclaimed(source: Path, tmp_path: Path) -> None:
     """After real_from is refused for a wrong seed, the corrected command works in the same --out folder."""
     out = tmp_path / "retry"

@@ -1,4 +1,4 @@
-"""``pilworld bench paired --json``: per-branch wall times as one JSON object on the last line."""
+"""``pilworld bench paired-timing --json``: per-branch wall times as one JSON object on the last line."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from pilworld.cli.main import main
 
 
-def test_bench_paired_json(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["bench", "paired", "--subtasks", "1", "--rounds", "1", "--json"]) == 0
+def test_bench_paired_timing_json(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "paired-timing", "--subtasks", "1", "--rounds", "1", "--json"]) == 0
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["subtasks"] == 1 and out["rounds"] == 1
     assert out["robot_seconds_per_subtask"] == pytest.approx(1.5)
@@ -21,6 +21,6 @@ def test_bench_paired_json(capsys: pytest.CaptureFixture[str]) -> None:
         assert b["realtime_factor"] > 0
 
 
-def test_bench_paired_rejects_zero_rounds(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["bench", "paired", "--rounds", "0"]) == 2
+def test_bench_paired_timing_rejects_zero_rounds(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "paired-timing", "--rounds", "0"]) == 2
     assert "--rounds" in capsys.readouterr().err

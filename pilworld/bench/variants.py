@@ -1,0 +1,223 @@
+"""World-model variants run in closed loop on the same pairs (bench paired, speed-accuracy, stability).
+
+A :class:`ModelVariant` is a world model plus how the imagined branch runs it (adapter, sampling steps,
+history hidden or not, resized to the rig or not). :func:`evaluate_variants` runs one protocol — tasks ×
+checkpoints × subtasks, R rounds, layout seeds — for several variants: the first variant's run executes
+the real branches, and every other run copies them (``PairedConfig.real_from``), so the real side is
+identical across variants and paid for once. Each run folder is then judged by the image-only judge
+(success + automatic hallucination detector) and gets its ``metrics.json``. Everything resumes: rerun
+the same call and finished branches, verdicts and metrics are reused.
+
+The benchmark weights (the Ctrl-World-style baseline and the ablations, trained on the same data and
+VAE as the shipped model; docs/RESULTS.md) live in ``weights/bench`` at the repository root, outside
+the installed package.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pilworld.types import ChunkSpec
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+BENCH_WEIGHTS = REPO_ROOT / "weights" / "bench"
+RESULT_FILE = "variant_result.json"
+
+
+@dataclass(frozen=True)
+class ModelVariant:
+    """One world model as the imagined branch runs it."""
+
+    name: str  # folder-safe key: "pilworld", "ctrl_world", ...
+    label: str  # what the tables show
+    world_model: str = ""  # model folder; "" = the packaged checkpoint
+    adapter: str = "auto"  # "auto" | "none" | an adapter name
+    steps: int | None = None  # sampling steps; None = the model's default
+    history: bool = True  # False = the history memory hidden at inference
+    resize: bool = False  # run a model of another image size resized to the rig's
+    role: str = "model"  # "shipped" | "baseline" | "ablation" | "reference" | "model"
+    note: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.name or any(c in self.name for c in "/\\ ") or self.name.startswith("."):
+            raise ValueError(f"variant name: expected a folder-safe key, got {self.name!r}")
+        if self.steps is not None and self.steps < 1:
+            raise ValueError(f"variant {self.name}: steps must be >= 1, got {self.steps}")
+
+    def check(self) -> None:
+        """Raise ``FileNotFoundError`` naming the variant when its model folder is missing."""
+        if self.world_model and not (Path(self.world_model) / "config.json").is_file():
+            raise FileNotFoundError(
+                f"variant {self.name!r}: no world model at {self.world_model} (config.json missing); "
+                "see docs/RESULTS.md for the command that trains it"
+            )
+
+
+def bench_model(name: str) -> str:
+    return str(BENCH_WEIGHTS / name)
+
+
+def standard_variants() -> list[ModelVariant]:
+    """The paper-style table's rows: ours, the Ctrl-World-style baseline, and the ablations.
+
+    The baseline and the trained ablations had 3,500 Ψ_θ steps; ``pilworld_3500`` is our recipe at the
+    same budget (the shipped model's first stage), so each is compared at equal training.
+    """
+    return [
+        ModelVariant("pilworld", "PiL-World (shipped, 9k steps, task adapters)", role="shipped"),
+        ModelVariant(
+            "ctrl_world",
+            "Ctrl-World-style (action tokens, no control video, 3.5k)",
+            bench_model("ctrl_world_3500"),
+            adapter="none",
+            role="baseline",
+        ),
+        ModelVariant(
+            "pilworld_3500",
+            "PiL-World at 3.5k steps (equal budget)",
+            bench_model("pilworld_3500"),
+            adapter="none",
+            role="reference",
+        ),
+        ModelVariant(
+            "no_history",
+            "− history (shipped, memory hidden)",
+            history=False,
+            role="ablation",
+            note="inference-time: the shipped weights with the latent history memory masked",
+        ),
+        ModelVariant(
+            "success_only",
+            "− failure data (success-only, 3.5k)",
+            bench_model("success_only_3500"),
+            adapter="none",
+            role="ablation",
+        ),
+    ]
+
+
+@dataclass(frozen=True)
+class PairedProtocol:
+    """The pairs every variant runs: tasks × checkpoints × subtasks, R rounds, layouts from ``seed``."""
+
+    tasks: tuple[str, ...]
+    checkpoints: tuple[str, ...]
+    subtasks: int
+    rounds: int = 5
+    seed: int = 6_000_000  # reserved for benchmark pairs (docs/RESULTS.md "Seeds")
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.subtasks < 1 or self.rounds < 1:
+            raise ValueError(f"protocol: subtasks and rounds must be >= 1, got {self.subtasks}, {self.rounds}")
+        if not self.tasks or not self.checkpoints:
+            raise ValueError("protocol: needs at least one task and one checkpoint")
+
+    @property
+    def pairs(self) -> int:
+        return len(self.tasks) * len(self.checkpoints) * self.subtasks
+
+
+def run_variant(
+    variant: ModelVariant,
+    protocol: PairedProtocol,
+    out: Path,
+    *,
+    rig: str | Path,
+    real_from: Path | None,
+    workers: int | None,
+    progress: bool,
+    single_step: bool = True,
+) -> dict[str, Any]:
+    """Paired run + judging + metrics of one variant in ``out``; returns its result (also in ``RESULT_FILE``)."""
+    from pilworld.config.rig import RigConfig
+    from pilworld.judges.base import judge_dataset, unjudged_episodes
+    from pilworld.judges.vision import VisionJudge
+    from pilworld.metrics import write_metrics
+    from pilworld.paired import PairedConfig, paired_run
+
+    variant.check()
+    t0 = time.monotonic()
+    cfg = PairedConfig(
+        rig=str(rig),
+        task=",".join(protocol.tasks),
+        checkpoints=list(protocol.checkpoints),
+        subtasks=protocol.subtasks,
+        out=str(out),
+        seed=protocol.seed,
+        world_model=variant.world_model,
+        adapter=variant.adapter,
+        steps=variant.steps,
+        spec=ChunkSpec(rounds=protocol.rounds),
+        real_from=str(real_from) if real_from is not None else "",
+        history=variant.history,
+        resize=variant.resize,
+    )
+    run = paired_run(cfg, progress=progress)
+    paired_s = time.monotonic() - t0
+    t = time.monotonic()
+    judge = VisionJudge()
+    todo = unjudged_episodes(out, judge.judge_id)
+    if todo:
+        judge_dataset(out, [judge], RigConfig.load(rig), episodes=todo, progress=progress, workers=workers)
+    judging_s = time.monotonic() - t
+    t = time.monotonic()
+    metrics = write_metrics(out, out / "metrics.json", single_step=single_step, lpips=False)
+    result = {
+        "variant": asdict(variant),
+        "out": str(out),
+        "metrics": metrics,
+        "imagined_seconds_per_subtask": run["seconds_per_subtask"].get("imagined"),
+        "stages_s": {
+            "paired": round(paired_s, 1),
+            "judging": round(judging_s, 1),
+            "metrics": round(time.monotonic() - t, 1),
+        },
+    }
+    (out / RESULT_FILE).write_text(json.dumps(result))
+    return result
+
+
+def evaluate_variants(
+    variants: Sequence[ModelVariant],
+    protocol: PairedProtocol,
+    out: str | Path,
+    *,
+    rig: str | Path,
+    workers: int | None = None,
+    progress: bool = True,
+    single_step: bool = True,
+) -> dict[str, dict[str, Any]]:
+    """Every variant on the protocol's pairs, the real branches run once (by the first variant)."""
+    if not variants:
+        raise ValueError("variants: expected at least one")
+    names = [v.name for v in variants]
+    if len(set(names)) != len(names):
+        raise ValueError(f"variants: names listed twice: {names}")
+    for v in variants:  # fail before hours of work, naming the missing model
+        v.check()
+    root = Path(out)
+    root.mkdir(parents=True, exist_ok=True)
+    results: dict[str, dict[str, Any]] = {}
+    reference: Path | None = None
+    for v in variants:
+        if progress:
+            print(f"[{v.name}] {v.label}: {protocol.pairs} pairs", flush=True)
+        folder = root / v.name
+        results[v.name] = run_variant(
+            v,
+            protocol,
+            folder,
+            rig=rig,
+            real_from=reference,
+            workers=workers,
+            progress=progress,
+            single_step=single_step,
+        )
+        reference = reference or folder
+    return results
