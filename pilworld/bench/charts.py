@@ -118,7 +118,10 @@ def speed_accuracy_chart(points: Sequence[Mapping[str, Any]], front: Sequence[st
         ax.set_xscale("log")
         ax.set_xlabel("chunk latency, ms (log; labels: sampling steps)")
         ax.set_ylabel(label)
-        ax.legend(fontsize=7)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+        else:
+            ax.text(0.5, 0.5, "not measured (closed loop skipped)", ha="center", transform=ax.transAxes, fontsize=8)
     fig.tight_layout()
     return _write(fig, path)
 

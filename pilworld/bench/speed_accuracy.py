@@ -76,7 +76,7 @@ def _load(m: TrainedModel, rig_size: tuple[int, int]) -> Any:
     if m.untrained:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(0)
-            model: Any = PilWorldModel(preset(m.preset)).eval()
+            model: Any = PilWorldModel(preset(m.preset, height=m.size, width=m.size)).eval()
     else:
         path = Path(m.path) if m.path else Path(DEFAULT_CHECKPOINT)
         if not (path / "config.json").is_file():
@@ -145,7 +145,14 @@ def run_speed_accuracy(
     chosen_steps = tuple(steps or (QUICK_STEPS if quick else STEPS))
     n_clips = clips or (QUICK_CLIPS if quick else FULL_CLIPS)
     loop = (not quick) if closed_loop is None else closed_loop
-    heldout = heldout_dataset(rig, tasks=list(TASK_NAMES), episodes=1, seed0=HELDOUT_SEED0, progress=progress)
+    for m in chosen_models:  # a missing model fails before minutes of data collection and earlier points
+        if not m.untrained and m.path and not (Path(m.path) / "config.json").is_file():
+            raise FileNotFoundError(
+                f"speed-accuracy: no {m.preset} {m.size}x{m.size} model at {m.path}; docs/RESULTS.md has the "
+                "command that trains it"
+            )
+    # The held-out set of `pilworld bench world-model` (same arguments, so its cache is shared).
+    heldout = heldout_dataset(rig, tasks=list(TASK_NAMES), episodes=2, seed0=HELDOUT_SEED0, progress=progress)
     points: list[dict[str, Any]] = []
     for m in chosen_models:
         model = _load(m, rig_size)
@@ -180,7 +187,8 @@ def run_speed_accuracy(
             if m.untrained:
                 point["untrained"] = "not trained on this CPU (timed with random weights)"
             points.append(point)
-    closed: dict[str, Any] = {"skipped": "quick mode: closed loop not run"} if not loop else {}
+    reason = "quick mode: closed loop not run" if quick and closed_loop is None else "closed_loop=False"
+    closed: dict[str, Any] = {"skipped": reason} if not loop else {}
     if loop:
         closed = _closed_loop(points, chosen_models, out, rig=rig, workers=workers, progress=progress)
     front = pareto_front(points)

@@ -18,6 +18,7 @@ Five measurements of the shipped model on the simulated rig (layouts from seed 7
 4. **Calibration perturbed** — Γ drawn with the head camera's principal point shifted by 5, 10, 20 px
    (rig image pixels, diagonally), the policy's chunk: single-round head-view PSNR against the simulator.
 5. **Out-of-distribution actions** — arm motions the training data never had ("fast": displacement ×3,
+   each step's increment capped at 0.3 rad,
    "jitter": N(0, 0.05 rad) per step, "offset": +0.3 rad on both shoulder lifts, ramped in), each executed
    in both branches through the same safety filter (which slows them to the joints' speed caps): single-
    round PSNR per view against the simulator, beside the policy's chunk.
@@ -107,6 +108,8 @@ def horizon_sweep(run: Path, rounds: int, frames_per_round: int) -> dict[str, An
 
 GRIPS = (LEFT_GRIP, RIGHT_GRIP)
 JITTER_RAD = 0.05
+FAST_STEP_RAD = 0.3  # below the safety filter's 0.35 rad per-step refusal
+EXECUTED_STEPS = ChunkSpec().executed_steps  # K·Δ = 45 of the policy's H_π = 50 rows are executed
 
 
 def _arms_only(chunk: NDArray[np.floating], base: Chunk) -> Chunk:
@@ -125,7 +128,14 @@ def _reverse(base: Chunk, state: Chunk) -> Chunk:
 
 
 def _fast(base: Chunk, state: Chunk) -> Chunk:
-    return _arms_only(state[None] + 3.0 * (base - state[None]), base)
+    """The displacement ×3, each step's increment limited to FAST_STEP_RAD (the filter refuses jumps > 0.35)."""
+    want = state[None] + 3.0 * (base - state[None])
+    out = np.empty_like(want)
+    prev = state.astype(np.float64)
+    for i, row in enumerate(want):
+        prev = prev + np.clip(row - prev, -FAST_STEP_RAD, FAST_STEP_RAD)
+        out[i] = prev
+    return _arms_only(out, base)
 
 
 def _jitter(base: Chunk, state: Chunk, rng: np.random.Generator) -> Chunk:
@@ -138,7 +148,8 @@ def _jitter(base: Chunk, state: Chunk, rng: np.random.Generator) -> Chunk:
 def _offset(base: Chunk, state: Chunk) -> Chunk:
     """+0.3 rad on both shoulder lifts, ramped in over the chunk (a jump would be refused by the safety filter)."""
     out = base.copy()
-    ramp = 0.3 * np.arange(1, base.shape[0] + 1, dtype=np.float32) / base.shape[0]
+    # Full 0.3 rad by the last executed step (K·Δ of the H_π rows run), then held.
+    ramp = 0.3 * np.minimum(np.arange(1, base.shape[0] + 1, dtype=np.float32) / EXECUTED_STEPS, 1.0)
     out[:, LEFT_ARM.start + 1] += ramp
     out[:, RIGHT_ARM.start + 1] += ramp
     return out

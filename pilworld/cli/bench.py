@@ -482,7 +482,10 @@ def _speed_accuracy(args: argparse.Namespace) -> int:
     from pilworld.bench.charts import speed_accuracy_chart
     from pilworld.bench.speed_accuracy import run_speed_accuracy
 
-    steps = [int(s) for s in args.steps.split(",") if s.strip()] or None
+    try:
+        steps = [int(s) for s in args.steps.split(",") if s.strip()] or None
+    except ValueError:
+        raise ValueError(f"--steps: expected comma-separated integers such as 1,2,4, got {args.steps!r}") from None
     if steps and min(steps) < 1:
         raise ValueError(f"--steps: expected integers >= 1, got {args.steps!r}")
     if args.clips is not None and args.clips < 1:

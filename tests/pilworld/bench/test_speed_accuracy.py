@@ -332,12 +332,6 @@ def test_sweep_chart(sweep: tuple[dict[str, Any], list[dict[str, Any]], Path], t
     assert speed_accuracy_chart(with_loop, r["front_ids"], tmp_path / "loop.png").read_bytes()[:8] == PNG
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="bug: run_speed_accuracy collects the held-out set (and runs earlier models' points) before "
-    "_load finds a missing model folder; the check should come first, as in evaluate_variants",
-)
 def test_a_missing_model_fails_before_the_heldout_set_is_collected(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:

@@ -89,14 +89,19 @@ def test_hold_reverse_fast_arm_motion() -> None:
     disp = base[:, ARMS] - state[None, ARMS]
     np.testing.assert_array_equal(_hold(base, state)[:, ARMS], np.repeat(state[None, ARMS], H, axis=0))
     np.testing.assert_allclose(_reverse(base, state)[:, ARMS] - state[None, ARMS], -disp, atol=1e-6)
-    np.testing.assert_allclose(_fast(base, state)[:, ARMS] - state[None, ARMS], 3.0 * disp, atol=1e-6)
+    fast = _fast(base, state)[:, ARMS]
+    np.testing.assert_allclose(fast - state[None, ARMS], 3.0 * disp, atol=1e-6)  # small steps: exactly ×3
+    big = base.copy()
+    big[:, ARMS] = state[None, ARMS] + 0.2 * np.arange(1, H + 1, dtype=np.float32)[:, None]
+    steps = np.diff(np.vstack([state[None, ARMS], _fast(big, state)[:, ARMS]]), axis=0)
+    assert np.abs(steps).max() <= 0.3 + 1e-6  # ×3 of 0.2 rad per step is capped below the filter's 0.35
 
 
 def test_offset_ramps_both_shoulder_lifts_to_0_3_rad() -> None:
-    """Columns 1 and 8 get 0.3·i/H on row i (0.3 on the last row); every other column is the policy's."""
+    """Columns 1 and 8 get 0.3·min(i/(K·Δ), 1) on row i (0.3 from the last executed row); others the policy's."""
     base, state = _chunk()
     out = _offset(base, state)
-    ramp = 0.3 * np.arange(1, H + 1) / H
+    ramp = 0.3 * np.minimum(np.arange(1, H + 1) / ChunkSpec().executed_steps, 1.0)
     for col in (1, 8):
         np.testing.assert_allclose(out[:, col] - base[:, col], ramp, atol=1e-6)
         assert out[-1, col] - base[-1, col] == pytest.approx(0.3, abs=1e-6)
