@@ -9,7 +9,7 @@ Every **point** is one trained model run with one number of Euler steps (1, 2, 4
   **at the rig's resolution** for every model (a 32×32 model's frames upsampled to 128×128 — the size the
   judges see), so points of different resolutions compare: head-view pooled PSNR and SSIM;
 * without ``--quick``: |ΔSR| and HFR in closed loop on a small paired protocol (3 tasks × 2 checkpoints
-  × 4 subtasks, real branches shared between points).
+  × 3 subtasks, real branches shared between points).
 
 The **Pareto front** is the set of points no other point beats on both latency and head-view PSNR.
 The **default** is chosen at the knee: the fastest front point whose head-view PSNR is within
@@ -35,6 +35,7 @@ from pilworld.bench.variants import ModelVariant, PairedProtocol, bench_model, e
 
 STEPS = (1, 2, 4, 8, 16)
 QUICK_STEPS = (1, 2, 4, 8, 16)
+CLOSED_LOOP_SUBTASKS = 3  # per task × checkpoint: 18 pairs per point
 KNEE_DB = 0.25  # head-view PSNR within this of the best counts as "reaches the accuracy"
 QUICK_CLIPS = 24
 FULL_CLIPS = 96
@@ -223,7 +224,7 @@ def _closed_loop(
     from pilworld.bench.paired import QUICK_CHECKPOINTS, protocol
 
     base = protocol(True)
-    proto = PairedProtocol(base.tasks, QUICK_CHECKPOINTS, 4, base.rounds, base.seed)
+    proto = PairedProtocol(base.tasks, QUICK_CHECKPOINTS, CLOSED_LOOP_SUBTASKS, base.rounds, base.seed)
     by_key = {m.key: m for m in models}
     variants = []
     for p in points:
