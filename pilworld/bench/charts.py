@@ -170,3 +170,30 @@ def stability_chart(result: Mapping[str, Any], path: str | Path) -> Path:
         axes[3].set_title("out-of-distribution actions", fontsize=9)
     fig.tight_layout()
     return _write(fig, path)
+
+
+def rollout_strip(
+    runs: str | Path, variants: Sequence[str], pair: str, path: str | Path, view: str = "cam_high"
+) -> Path:
+    """Frames 0, 8, 15, 30, 45 and the last of one pair's ``view``: the real branch, then each variant's imagined."""
+    import json
+
+    import numpy as np
+    from PIL import Image
+
+    from pilworld.data.reader import EpisodeStore
+
+    rows = []
+    for k, name in enumerate(variants):
+        store = EpisodeStore(Path(runs) / name)
+        index = {(json.loads(r["extra"] or "{}").get("pair"), r["origin"]): i for i, r in enumerate(store.episodes)}
+        for origin in ("real", "imagined") if k == 0 else ("imagined",):
+            if (pair, origin) not in index:
+                raise ValueError(f"rollout_strip: {Path(runs) / name} has no {origin} branch of {pair}")
+            frames = store.frames(index[(pair, origin)], view)
+            picks = [0, 8, 15, 30, 45, len(frames) - 1]
+            rows.append(np.concatenate([frames[min(i, len(frames) - 1)] for i in picks], axis=1))
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.concatenate(rows, axis=0)).save(p)
+    return p

@@ -157,7 +157,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("dir", type=Path, help="folder with <bench>-<mode>.json files")
     p.add_argument("--mode", default="full", choices=["full", "quick"])
+    p.add_argument(
+        "--strip",
+        nargs=3,
+        metavar=("RUNS", "PAIR", "PNG"),
+        default=None,
+        help="also draw one pair's head view: the real branch, then each variant's imagined branch",
+    )
+    p.add_argument("--variants", default="pilworld,ctrl_world", help="variants of the strip (comma-separated)")
     args = p.parse_args(argv)
+    if args.strip:
+        from pilworld.bench.charts import rollout_strip
+
+        runs, pair, png = args.strip
+        print(f"strip: {rollout_strip(runs, args.variants.split(','), pair, png)}")
     for bench, fn in (
         ("paired", paired_tables),
         ("speed-accuracy", speed_accuracy_tables),
