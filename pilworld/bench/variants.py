@@ -169,7 +169,13 @@ def run_variant(
         judge_dataset(out, [judge], RigConfig.load(rig), episodes=todo, progress=progress, workers=workers)
     judging_s = time.monotonic() - t
     t = time.monotonic()
-    metrics = write_metrics(out, out / "metrics.json", single_step=single_step, lpips=False)
+    cached = out / RESULT_FILE
+    if run["branches_run"] == 0 and not todo and cached.is_file():
+        # Nothing new was run or judged, so the stored metrics are this run's: reuse them (the single-step
+        # SSIM of 300 pairs alone takes minutes). Delete the file to force a recomputation.
+        metrics = json.loads(cached.read_text())["metrics"]
+    else:
+        metrics = write_metrics(out, out / "metrics.json", single_step=single_step, lpips=False)
     result = {
         "variant": asdict(variant),
         "out": str(out),

@@ -146,9 +146,10 @@ def single_step_metrics(
         still = _clip({v: np.repeat(real[v][:1], k, axis=0) for v in views}, views)
         if pair.task not in per_task:
             per_task[pair.task] = (SingleStepScores(lpips_fn), SingleStepScores())
+        model_values, frozen_values = overall[0].score(pred, target), overall[1].score(still, target)
         for model_scores, frozen_scores in (overall, per_task[pair.task]):
-            model_scores.add(pred, target, views)
-            frozen_scores.add(still, target, views)
+            model_scores.add_scores(model_values, views)
+            frozen_scores.add_scores(frozen_values, views)
     out |= {
         "K": run_k,
         "pairs_used": overall[0].samples,
