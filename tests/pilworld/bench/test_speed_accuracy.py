@@ -20,6 +20,7 @@ from hw_drivers.sim.tasks import TASK_NAMES
 from pilworld.bench.charts import speed_accuracy_chart
 from pilworld.bench.paired import QUICK_CHECKPOINTS, protocol
 from pilworld.bench.speed_accuracy import (
+    CLOSED_LOOP_SUBTASKS,
     KNEE_DB,
     TrainedModel,
     _closed_loop,
@@ -222,7 +223,7 @@ def test_closed_loop_runs_every_trained_point_as_a_variant(monkeypatch: pytest.M
     assert all(v.adapter == "none" and v.resize and v.history and v.role == "point" for v in variants)
     quick = protocol(True)
     proto: PairedProtocol = call["proto"]
-    assert (proto.tasks, proto.checkpoints, proto.subtasks) == (quick.tasks, QUICK_CHECKPOINTS, 4)
+    assert (proto.tasks, proto.checkpoints, proto.subtasks) == (quick.tasks, QUICK_CHECKPOINTS, CLOSED_LOOP_SUBTASKS)
     assert (proto.rounds, proto.seed) == (quick.rounds, quick.seed)
     assert call["out"] == tmp_path / "cl" and call["single_step"] is False and call["workers"] == 1
     assert info == {"pairs_per_point": 3 * 2 * 4, "checkpoints": list(QUICK_CHECKPOINTS), "out": str(tmp_path / "cl")}
