@@ -37,6 +37,7 @@ class Rollout:
     segments: list[Segment] = field(default_factory=list)
     chunks: list[NDArray[np.float32]] = field(default_factory=list)
     timings: list[RoundTiming] = field(default_factory=list)
+    stopped: str = ""  # why the rollout ended before its last round ("" = it ran every round)
 
     @property
     def observations(self) -> list[Observation]:
@@ -48,8 +49,22 @@ class Rollout:
         return sum(t.policy_s + t.env_s for t in self.timings)
 
 
-def closed_loop(policy: Policy, env: Env, instruction: str, rounds: int, *, start: Start) -> Rollout:
-    """Run ``rounds`` closed-loop rounds of ``policy`` in ``env`` from ``start``."""
+def closed_loop(
+    policy: Policy,
+    env: Env,
+    instruction: str,
+    rounds: int,
+    *,
+    start: Start,
+    stop_on: tuple[type[Exception], ...] = (),
+) -> Rollout:
+    """Run ``rounds`` closed-loop rounds of ``policy`` in ``env`` from ``start``.
+
+    An exception of a ``stop_on`` type raised by ``env.step`` after the first round ends the rollout
+    there (``Rollout.stopped`` says why) instead of propagating: the imagined branch uses it for a chunk
+    the safety filter refuses, which a policy can only produce from imagined frames (the first chunk
+    is the same in both branches, so a refusal there still raises).
+    """
     if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 1:
         raise ValueError(f"rounds: expected an integer >= 1, got {rounds!r}")
     if not isinstance(instruction, str) or not instruction.strip():
@@ -61,7 +76,13 @@ def closed_loop(policy: Policy, env: Env, instruction: str, rounds: int, *, star
         t0 = time.perf_counter()
         chunk = validate_chunk(policy.infer(obs, instruction), policy.name, dim=dof)
         t1 = time.perf_counter()
-        segment = env.step(chunk)
+        try:
+            segment = env.step(chunk)
+        except stop_on as exc:
+            if not rollout.segments:
+                raise
+            rollout.stopped = f"{type(exc).__name__}: {exc}"
+            break
         t2 = time.perf_counter()
         rollout.chunks.append(chunk)
         rollout.segments.append(segment)

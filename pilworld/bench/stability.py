@@ -18,7 +18,7 @@ Five measurements of the shipped model on the simulated rig (layouts from seed 7
 4. **Calibration perturbed** — Γ drawn with the head camera's principal point shifted by 5, 10, 20 px
    (rig image pixels, diagonally), the policy's chunk: single-round head-view PSNR against the simulator.
 5. **Out-of-distribution actions** — arm motions the training data never had ("fast": displacement ×3,
-   each step's increment capped at 0.3 rad,
+   each step's increment capped at 0.1 rad — about the joints' top speed,
    "jitter": N(0, 0.05 rad) per step, "offset": +0.3 rad on both shoulder lifts, ramped in), each executed
    in both branches through the same safety filter (which slows them to the joints' speed caps): single-
    round PSNR per view against the simulator, beside the policy's chunk.
@@ -108,7 +108,9 @@ def horizon_sweep(run: Path, rounds: int, frames_per_round: int) -> dict[str, An
 
 GRIPS = (LEFT_GRIP, RIGHT_GRIP)
 JITTER_RAD = 0.05
-FAST_STEP_RAD = 0.3  # below the safety filter's 0.35 rad per-step refusal
+# At most the joints' speed cap per control step (π rad/s at 30 Hz ≈ 0.105 rad): the filter slows a faster
+# target to that cap, the gap to the next target then grows, and past 0.35 rad the filter refuses.
+FAST_STEP_RAD = 0.1
 EXECUTED_STEPS = ChunkSpec().executed_steps  # K·Δ = 45 of the policy's H_π = 50 rows are executed
 
 

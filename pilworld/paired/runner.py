@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from hw_drivers.errors import SafetyViolationError
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.data.atomic import write_json
@@ -320,10 +321,14 @@ def paired_run(
                     )
                 else:
                     env = RobotEnv(robot, cfg.spec, pace=station.pace)  # a simulator may run ahead of real time
-                rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
+                # A refused chunk ends an imagined rollout early (kept, and judged as it is); on the robot it raises.
+                stop_on = (SafetyViolationError,) if origin == "imagined" else ()
+                rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start, stop_on=stop_on)
                 # The first policy chunk's digest: equal in both branches (same start, policy and seed), which
                 # is the premise of comparing their first rounds frame by frame (pilworld.metrics.single_step).
                 ep_extra = {**extra, "chunk0": hashlib.sha256(rollout.chunks[0].tobytes()).hexdigest()[:16]}
+                if rollout.stopped:
+                    ep_extra["stopped"] = rollout.stopped
                 ep = rollout_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=ep_extra)
                 index = writer.append(ep)
                 if origin == "real":

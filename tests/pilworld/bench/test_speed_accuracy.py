@@ -226,7 +226,11 @@ def test_closed_loop_runs_every_trained_point_as_a_variant(monkeypatch: pytest.M
     assert (proto.tasks, proto.checkpoints, proto.subtasks) == (quick.tasks, QUICK_CHECKPOINTS, CLOSED_LOOP_SUBTASKS)
     assert (proto.rounds, proto.seed) == (quick.rounds, quick.seed)
     assert call["out"] == tmp_path / "cl" and call["single_step"] is False and call["workers"] == 1
-    assert info == {"pairs_per_point": 3 * 2 * CLOSED_LOOP_SUBTASKS, "checkpoints": list(QUICK_CHECKPOINTS), "out": str(tmp_path / "cl")}
+    assert info == {
+        "pairs_per_point": 3 * 2 * CLOSED_LOOP_SUBTASKS,
+        "checkpoints": list(QUICK_CHECKPOINTS),
+        "out": str(tmp_path / "cl"),
+    }
     assert (points[0]["abs_delta_sr"], points[0]["hfr"], points[0]["sr_imag"]) == (0.0, 0.9, 0.5)
     assert points[1]["abs_delta_sr"] == pytest.approx(0.1)
     assert points[2]["abs_delta_sr"] is None and "sr_imag" not in points[2]

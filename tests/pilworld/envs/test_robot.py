@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from pilworld.envs import EnvError, ImaginedEnv, RobotEnv
 from pilworld.policies.base import CallablePolicy, PolicyError
 from pilworld.policies.scripted import ScriptedPolicy
 from pilworld.rollout import closed_loop
-from pilworld.types import ChunkSpec, Observation
+from pilworld.types import ChunkSpec, Observation, Segment
 from pilworld.world_model import DEFAULT_CHECKPOINT
 from pilworld.world_model.checkpoint import load_world_model
 
@@ -123,3 +124,29 @@ def test_closed_loop_validates_its_arguments(robot: SimRobot) -> None:
     bad = CallablePolicy(lambda o, i: np.full((50, 14), np.nan), "nanny")
     with pytest.raises(PolicyError, match=r"nanny.*finite"):
         closed_loop(bad, env, "x", 1, start=start)
+
+
+def test_closed_loop_stop_on_ends_the_rollout_after_the_first_round(robot: SimRobot) -> None:
+    """A stop_on error in round 2 keeps round 1 and says why; the same error in round 1 propagates."""
+
+    class Refusing(RobotEnv):
+        def __init__(self, refuse_at: int) -> None:
+            super().__init__(robot, ChunkSpec(rounds=3), pace=False)
+            self.calls, self.refuse_at = 0, refuse_at
+
+        def step(self, chunk: Any) -> Segment:
+            self.calls += 1
+            if self.calls == self.refuse_at:
+                raise SafetyViolationError("SimRobot", "max_step", "left_joint_1 would move 0.41 (test)")
+            return super().step(chunk)
+
+    hold = CallablePolicy(lambda o, i: np.tile(o.state, (50, 1)))
+    start = robot.reset(seed=0, subtask=0)
+    out = closed_loop(hold, Refusing(2), "sort", 3, start=start, stop_on=(SafetyViolationError,))
+    assert len(out.segments) == 1 and "SafetyViolationError" in out.stopped and "left_joint_1" in out.stopped
+    start = robot.reset(seed=0, subtask=0)
+    with pytest.raises(SafetyViolationError):
+        closed_loop(hold, Refusing(1), "sort", 3, start=start, stop_on=(SafetyViolationError,))
+    start = robot.reset(seed=0, subtask=0)
+    with pytest.raises(SafetyViolationError):  # without stop_on it propagates in any round
+        closed_loop(hold, Refusing(2), "sort", 3, start=start)
