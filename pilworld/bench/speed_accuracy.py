@@ -65,6 +65,15 @@ def default_models() -> list[TrainedModel]:
     ]
 
 
+def _check_model(m: TrainedModel, path: Path) -> None:
+    """Raise ``FileNotFoundError`` naming the preset and size when ``path`` holds no model."""
+    if not (path / "config.json").is_file():
+        raise FileNotFoundError(
+            f"speed-accuracy: no {m.preset} {m.size}x{m.size} model at {path}; docs/RESULTS.md has the "
+            "command that trains it"
+        )
+
+
 def _load(m: TrainedModel, rig_size: tuple[int, int]) -> Any:
     import torch
 
@@ -80,11 +89,7 @@ def _load(m: TrainedModel, rig_size: tuple[int, int]) -> Any:
             model: Any = PilWorldModel(preset(m.preset, height=m.size, width=m.size)).eval()
     else:
         path = Path(m.path) if m.path else Path(DEFAULT_CHECKPOINT)
-        if not (path / "config.json").is_file():
-            raise FileNotFoundError(
-                f"speed-accuracy: no {m.preset} {m.size}x{m.size} model at {path}; docs/RESULTS.md has the "
-                "command that trains it"
-            )
+        _check_model(m, path)
         model = load_world_model(path)
     if (model.info.width, model.info.height) != rig_size:
         model = ResizedWorldModel(model, height=rig_size[1], width=rig_size[0])
@@ -147,11 +152,8 @@ def run_speed_accuracy(
     n_clips = clips or (QUICK_CLIPS if quick else FULL_CLIPS)
     loop = (not quick) if closed_loop is None else closed_loop
     for m in chosen_models:  # a missing model fails before minutes of data collection and earlier points
-        if not m.untrained and m.path and not (Path(m.path) / "config.json").is_file():
-            raise FileNotFoundError(
-                f"speed-accuracy: no {m.preset} {m.size}x{m.size} model at {m.path}; docs/RESULTS.md has the "
-                "command that trains it"
-            )
+        if not m.untrained and m.path:
+            _check_model(m, Path(m.path))
     # The held-out set of `pilworld bench world-model` (same arguments, so its cache is shared).
     heldout = heldout_dataset(rig, tasks=list(TASK_NAMES), episodes=2, seed0=HELDOUT_SEED0, progress=progress)
     points: list[dict[str, Any]] = []
