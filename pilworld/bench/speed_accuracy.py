@@ -38,6 +38,10 @@ QUICK_STEPS = (1, 2, 4, 8, 16)
 CLOSED_LOOP_SUBTASKS = 3  # per task × checkpoint: 18 pairs per point
 KNEE_DB = 0.25  # head-view PSNR within this of the best counts as "reaches the accuracy"
 QUICK_CLIPS = 24
+# Timed calls per point. Quick mode takes the median of 3: the untrained `base` preset costs ~0.5 s per
+# Euler step, so 10 calls at 16 steps alone would eat a third of the 5-minute budget.
+QUICK_REPEATS = 3
+FULL_REPEATS = 10
 FULL_CLIPS = 96
 HEAD = "cam_high"
 
@@ -134,7 +138,7 @@ def run_speed_accuracy(
     models: Sequence[TrainedModel] | None = None,
     steps: Sequence[int] | None = None,
     clips: int | None = None,
-    repeats: int = 10,
+    repeats: int | None = None,
     out: str | Path = "bench_runs/speed-accuracy",
     closed_loop: bool | None = None,
     workers: int | None = None,
@@ -150,6 +154,7 @@ def run_speed_accuracy(
     chosen_models = list(models or default_models())
     chosen_steps = tuple(steps or (QUICK_STEPS if quick else STEPS))
     n_clips = clips or (QUICK_CLIPS if quick else FULL_CLIPS)
+    n_repeats = repeats or (QUICK_REPEATS if quick else FULL_REPEATS)
     loop = (not quick) if closed_loop is None else closed_loop
     for m in chosen_models:  # a missing model fails before minutes of data collection and earlier points
         if not m.untrained and m.path:
@@ -167,7 +172,7 @@ def run_speed_accuracy(
                 heldout=heldout,
                 steps=s,
                 clips=1 if m.untrained else n_clips,
-                repeats=repeats,
+                repeats=n_repeats,
                 rig=rig,
                 progress=False,
             )
@@ -208,6 +213,7 @@ def run_speed_accuracy(
         | ({"chunk_latency_ms": shipped["chunk_latency_ms"], "psnr_head": shipped["psnr_head"]} if shipped else {}),
         "closed_loop": closed,
         "heldout_clips": n_clips,
+        "latency_repeats": n_repeats,
         "machine": machine_info(),
         "wall_s": round(time.monotonic() - t0, 1),
     }

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from numpy.typing import NDArray
 from tqdm import tqdm
 
@@ -40,6 +41,7 @@ from hw_drivers.errors import SafetyViolationError
 from pilworld.bench.common import machine_info
 from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants
 from pilworld.types import LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, ChunkSpec, Subtask
+from pilworld.world_model.metrics import mse, psnr_from_mse
 
 STABILITY_SEED0 = 7_000_000
 HORIZONS = (1, 2, 5, 10, 20)
@@ -50,13 +52,18 @@ QUICK_CHECKPOINTS = ("scripted_step_01k", "scripted_step_30k")
 Chunk = NDArray[np.float32]
 
 
+def _chw(a: NDArray[np.uint8]) -> torch.Tensor:
+    """A decoded [..., H, W, 3] frame as the channels-first tensor the world-model metrics take."""
+    return torch.from_numpy(np.ascontiguousarray(np.moveaxis(a, -1, -3)))
+
+
 def _psnr(a: NDArray[np.uint8], b: NDArray[np.uint8]) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return 100.0 if mse == 0 else 10.0 * math.log10(255.0**2 / mse)
+    """Whole-frame PSNR (dB) with the world-model metrics' definition and cap (identical frames)."""
+    return float(psnr_from_mse(mse(_chw(a), _chw(b)).mean()))
 
 
 def _mse(a: NDArray[np.uint8], b: NDArray[np.uint8]) -> float:
-    return float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+    return float(mse(_chw(a), _chw(b)).mean())
 
 
 # ---------------------------------------------------------------------- 1 + 2: horizon and failures

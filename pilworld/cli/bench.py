@@ -109,7 +109,9 @@ def register(sub: Any) -> None:
     sa.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     sa.add_argument("--steps", default="", help="comma-separated sampling steps (default 1,2,4,8,16)")
     sa.add_argument("--clips", type=int, default=None, help="held-out clips per point (default 24 quick / 96)")
-    sa.add_argument("--repeats", type=int, default=10, help="timed calls per point (default 10)")
+    sa.add_argument(
+        "--repeats", type=int, default=None, help="timed calls per point; the median is reported (default 10, quick 3)"
+    )
     sa.add_argument("--out", type=Path, default=Path("bench_runs") / "speed-accuracy", help="closed-loop run folders")
     sa.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
     sa.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/speed_accuracy.png)")

@@ -30,19 +30,13 @@ class RealBranchSource:
     """The real episodes of a finished (or partly finished) paired run, by pair id."""
 
     def __init__(self, root: str | Path, cfg: PairedConfig) -> None:
-        from pilworld.paired.runner import CONFIG_FILE, same_rig
+        from pilworld.paired.runner import CONFIG_FILE, settings_diff, stored_config
 
         self.root = Path(root)
         path = self.root / CONFIG_FILE
         if not path.is_file():
             raise FileNotFoundError(f"real_from: {self.root} holds no paired run ({CONFIG_FILE} missing)")
-        have = json.loads(path.read_text())
-        want = json.loads(json.dumps(cfg.to_json()))
-        diff = [
-            k
-            for k in REAL_BRANCH_KEYS
-            if have.get(k) != want.get(k) and not (k == "rig" and same_rig(have.get(k), want.get(k)))
-        ]
+        diff = settings_diff(stored_config(path), json.loads(json.dumps(cfg.to_json())), REAL_BRANCH_KEYS)
         if diff:
             raise ValueError(
                 f"real_from: {self.root} was run with other settings ({', '.join(diff)}); its real branches "

@@ -22,7 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -165,20 +165,26 @@ def same_rig(a: Any, b: Any) -> bool:
     return Path(a).resolve() == Path(b).resolve()
 
 
+def stored_config(path: Path) -> dict[str, Any]:
+    """A run's stored ``paired_config.json``; a key an older run's file lacks had its present default then
+    (new settings default to the old behaviour)."""
+    return {**_config_defaults(), **json.loads(path.read_text())}
+
+
+def settings_diff(have: dict[str, Any], want: dict[str, Any], keys: Iterable[str]) -> list[str]:
+    """The ``keys`` whose settings differ between two configs (JSON form); rigs compare by the file."""
+    return sorted(
+        k for k in keys if have.get(k) != want.get(k) and not (k == "rig" and same_rig(have.get(k), want.get(k)))
+    )
+
+
 def _check_config(root: Path, cfg: PairedConfig, *, write: bool = True) -> None:
     """Refuse a folder holding a run with other settings; with ``write``, claim the folder for ``cfg``."""
     path = root / CONFIG_FILE
     want = json.loads(json.dumps(cfg.to_json()))
     if path.is_file():
-        # A key an older run's file lacks had its present default then (new settings default to the old behaviour).
-        have = {**_config_defaults(), **json.loads(path.read_text())}
-        diff = sorted(
-            k
-            for k in set(have) | set(want)
-            if k not in _UNCOMPARED
-            and have.get(k) != want.get(k)
-            and not (k == "rig" and same_rig(have.get(k), want.get(k)))
-        )
+        have = stored_config(path)
+        diff = settings_diff(have, want, (set(have) | set(want)) - set(_UNCOMPARED))
         if diff:
             raise ValueError(
                 f"{root}: holds a paired run with different settings ({', '.join(diff)}); "

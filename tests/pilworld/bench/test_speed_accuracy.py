@@ -383,3 +383,41 @@ def test_cli_rejects_bad_steps_and_clips(
         err = capsys.readouterr().err
         assert "--clips" in err and "expected at least 1" in err, bad
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("quick", "repeats", "want"), [(True, None, 3), (False, None, 10), (True, 5, 5)])
+def test_timed_calls_per_point(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, quick: bool, repeats: int | None, want: int
+) -> None:
+    """Quick mode times 3 calls per point (the untrained base at 16 steps costs ~8 s a call), full mode 10;
+    an explicit --repeats wins either way; the JSON says how many."""
+    timed: list[int] = []
+
+    def bench(model: Any, **kw: Any) -> dict[str, Any]:
+        timed.append(kw["repeats"])
+        view = {"psnr_pooled": 20.0, "ssim": 0.5}
+        return {
+            "per_view": {"cam_high": view},
+            "chunk_latency_ms": 100.0,
+            "realtime_factor": 2.0,
+            "psnr_pooled": 20.0,
+            "gain_over_frozen_pooled_db": {"cam_high": 1.0},
+            "clips": kw["clips"],
+        }
+
+    monkeypatch.setattr(wm, "heldout_dataset", lambda rig_path, **kw: tmp_path / "heldout")
+    monkeypatch.setattr(wm, "run_world_model_bench", bench)
+    monkeypatch.setattr(sa, "_load", lambda m, size: object())  # the model itself is never called here
+    r = run_speed_accuracy(
+        rig=SIM,
+        quick=quick,
+        models=[TrainedModel("small", 128, "")],
+        steps=[1, 2],
+        clips=1,
+        repeats=repeats,
+        out=tmp_path / "out",
+        closed_loop=False,
+        progress=False,
+    )
+    assert timed == [want, want]
+    assert r["latency_repeats"] == want
