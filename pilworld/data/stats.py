@@ -29,15 +29,30 @@ def vector_stats(values: NDArray[Any]) -> dict[str, NDArray[np.float64]]:
 
 
 def image_stats(frames: NDArray[np.uint8]) -> dict[str, NDArray[np.float64]]:
-    """(T, H, W, 3) uint8 → per-channel stats in [0, 1], shaped (3, 1, 1) like LeRobot's."""
+    """(T, H, W, 3) uint8 → per-channel stats in [0, 1], shaped (3, 1, 1) like LeRobot's.
+
+    Computed from one 256-bin histogram per channel, which holds everything min, max, mean and std
+    need for 8-bit pixels: ~9× cheaper than converting the frames to float64 (this ran for every view of
+    every recorded episode and was a third of a benchmark worker's time), and exact up to rounding.
+    """
+    if frames.dtype != np.uint8 or frames.ndim != 4 or frames.shape[-1] != 3 or frames.shape[0] == 0:
+        raise ValueError(
+            f"image_stats: expected (T, H, W, 3) uint8 frames with T ≥ 1, got {frames.dtype} {frames.shape}"
+        )
     T = frames.shape[0]
     idx = np.unique(np.linspace(0, T - 1, min(T, _IMAGE_SAMPLES)).round().astype(int))
-    x = frames[idx].astype(np.float64).reshape(-1, 3) / 255.0
+    pixels = frames[idx].reshape(-1, 3).astype(np.intp) + np.arange(3) * 256  # channel c → bins 256c … 256c+255
+    hist = np.bincount(pixels.ravel(), minlength=3 * 256).reshape(3, 256).astype(np.float64)
+    level = np.arange(256) / 255.0
+    n = hist.sum(axis=1)
+    mean = hist @ level / n
+    var = (hist * (level[None, :] - mean[:, None]) ** 2).sum(axis=1) / n
+    present = hist > 0
     out = {
-        "min": x.min(axis=0),
-        "max": x.max(axis=0),
-        "mean": x.mean(axis=0),
-        "std": x.std(axis=0),
+        "min": level[present.argmax(axis=1)],
+        "max": level[255 - present[:, ::-1].argmax(axis=1)],
+        "mean": mean,
+        "std": np.sqrt(var),
     }
     stats = {k: v.reshape(3, 1, 1) for k, v in out.items()}
     stats["count"] = np.array([len(idx)], dtype=np.float64)
