@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from pilworld.judges.hallucination_scene import ArmViews, Mask, dilate, erode
+from pilworld.judges.hallucination_scene import ArmViews, Mask, channel_max, dilate, erode
 from pilworld.perception.colour import ColourClass
 
 # Categories (paper appendix, "Hallucination-free ratio"): the reason of a verdict starts with one of these.
@@ -309,7 +309,7 @@ def check_arms(scene: HeadScene, th: Thresholds) -> Finding | None:
 def wrist_signature(frames: NDArray[np.uint8], dark: int, reference: int = 3) -> Mask:
     """Pixels dark in each of a wrist view's first ``reference`` frames: its own gripper, always in view."""
     n = min(reference, frames.shape[0])
-    return np.asarray((frames[:n].max(axis=-1) < dark).all(axis=0))
+    return np.asarray((channel_max(frames[:n]) < dark).all(axis=0))
 
 
 def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thresholds) -> Finding | None:
@@ -326,7 +326,7 @@ def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thres
         background = ~moving & ~objects
         n = int(background.sum())
         if n >= 0.1 * background.size:
-            changed = np.abs(im[t] - im[t - 1]).max(axis=-1) > 40
+            changed = channel_max(np.abs(im[t] - im[t - 1])) > 40
             frac = float((changed & background).sum()) / n
             if frac >= th.background_change:
                 bad[t] = True
@@ -335,8 +335,8 @@ def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thres
         sig = wrist_signature(frames, th.signature_dark)
         if sig.sum() < 20 * s * s:
             continue  # no gripper in view: nothing to recognise this camera by
-        own = (frames.max(axis=-1) < th.signature_dark + 20)[:, sig].mean(axis=1)  # (T,)
-        in_head = (head.images.max(axis=-1) < th.signature_dark + 20)[:, sig].mean(axis=1)
+        own = (channel_max(frames) < th.signature_dark + 20)[:, sig].mean(axis=1)  # (T,)
+        in_head = (channel_max(head.images) < th.signature_dark + 20)[:, sig].mean(axis=1)
         base = float(in_head[: min(3, T)].mean())
         for t in range(1, T):
             if bad[t]:
@@ -359,5 +359,5 @@ def _persists(head: HeadScene, t: int) -> bool:
         return True
     a = head.images[t - 1].astype(np.int16)
     c = head.images[t + 1].astype(np.int16)
-    back = np.abs(c - a).max(axis=-1) <= 40
+    back = channel_max(np.abs(c - a)) <= 40
     return float(back.mean()) < 0.8

@@ -25,6 +25,7 @@ Pixel lengths and areas below are tuned at 128×128 and scale with the image wid
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -159,6 +160,20 @@ def _capsule(canvas: NDArray[np.uint8], p0: NDArray[np.float64], p1: NDArray[np.
 # ---------------------------------------------------------------------- pixels
 
 
+def channel_max(images: NDArray[Any]) -> NDArray[Any]:
+    """``images.max(axis=-1)`` over the 3 colour channels, bit for bit, ~5× faster.
+
+    NumPy reduces a length-3 last axis with a slow generic loop; two element-wise maxima are vectorised.
+    The detector calls this on every frame of every view, so it was a sixth of a judged episode's time.
+    """
+    return np.asarray(np.maximum(np.maximum(images[..., 0], images[..., 1]), images[..., 2]))
+
+
+def channel_min(images: NDArray[Any]) -> NDArray[Any]:
+    """``images.min(axis=-1)`` over the 3 colour channels, bit for bit (see :func:`channel_max`)."""
+    return np.asarray(np.minimum(np.minimum(images[..., 0], images[..., 1]), images[..., 2]))
+
+
 @dataclass(frozen=True)
 class TableColour:
     """The table's chromaticity ``(r, g, b) / (r + g + b)`` and brightness (max channel), from one frame."""
@@ -196,8 +211,8 @@ def table_mask(images: Image, table: TableColour, *, max_chroma_distance: float 
     im = images.astype(np.float32)
     s = im.sum(axis=-1) + 1e-6
     ref = np.asarray(table.chroma, dtype=np.float32)
-    dist = np.abs(im / s[..., None] - ref).max(axis=-1)
-    out: Mask = (dist <= max_chroma_distance) & (im.max(axis=-1) >= 0.55 * table.value)
+    dist = channel_max(np.abs(im / s[..., None] - ref))
+    out: Mask = (dist <= max_chroma_distance) & (channel_max(im) >= 0.55 * table.value)
     return out
 
 
@@ -230,8 +245,8 @@ def colourful_mask(images: Image, min_saturation: float = 0.3, min_value: float 
     edges are kept out by the value floor.
     """
     im = images.astype(np.int16)
-    mx = im.max(axis=-1)
-    mn = im.min(axis=-1)
+    mx = channel_max(im)
+    mn = channel_min(im)
     out: Mask = (mx - mn >= min_saturation * mx) & (mx >= min_value * 255)
     return out
 

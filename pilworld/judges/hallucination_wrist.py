@@ -32,7 +32,14 @@ from pilworld.judges.hallucination_checks import (
     Thresholds,
     _centre,
 )
-from pilworld.judges.hallucination_scene import Mask, dilate, learn_table, object_labels, table_mask
+from pilworld.judges.hallucination_scene import (
+    Mask,
+    channel_max,
+    dilate,
+    learn_table,
+    object_labels,
+    table_mask,
+)
 from pilworld.types import LEFT_GRIP, RIGHT_GRIP
 
 PLANE_Z = 0.022  # a typical object mid-height on the table [m] (cubes and blocks 17-28 mm, bowls ~20 mm)
@@ -138,7 +145,7 @@ def _check_view(
     T = frames.shape[0]
     s = cam.width / 128.0
     labels = object_labels(frames, head.classes, th.faded_saturation)
-    dark = frames.max(axis=-1) < th.signature_dark
+    dark = channel_max(frames) < th.signature_dark
     table = table_mask(frames, learn_table(frames[0], (labels[0] > 0) | dark[0]))
     poses = cam.poses(rig, state)
     min_px = th.min_wrist_object_px * s * s

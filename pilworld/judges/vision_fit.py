@@ -153,7 +153,18 @@ def coverage(uv: FloatArray, window: Window) -> NDArray[np.float32]:
     local = (uv - np.array([window.u0, window.v0], dtype=np.float64) + 0.5) * s - 0.5
     pts = np.round(local * (1 << _SHIFT)).astype(np.int32)
     cv2.fillConvexPoly(canvas, pts, 1, lineType=cv2.LINE_8, shift=_SHIFT)
-    return np.asarray(canvas.reshape(window.h, s, window.w, s).mean(axis=(1, 3)), dtype=np.float32)
+    # Counting covered sub-pixels with s + s slice additions and dividing once gives the box mean exactly
+    # (k / s², s² a power of two) at a fraction of the cost of NumPy's reduction over two short strided
+    # axes; this runs for every pose the success judge tries.
+    rows = canvas.reshape(window.h, s, window.w * s).astype(np.uint16)
+    band = rows[:, 0]
+    for k in range(1, s):
+        band = band + rows[:, k]
+    cols = band.reshape(window.h, window.w, s)
+    hits = cols[..., 0]
+    for k in range(1, s):
+        hits = hits + cols[..., k]
+    return np.asarray(hits.astype(np.float32) / np.float32(s * s), dtype=np.float32)
 
 
 @dataclass(frozen=True)
