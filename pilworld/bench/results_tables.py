@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -178,9 +178,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     ):
         path = args.dir / f"{bench}-{args.mode}.json"
         print(f"### {bench} ({path})\n")
-        print(fn(json.loads(path.read_text())) if path.is_file() else f"({path} missing)")
+        print(_tables_of(path, fn))
         print()
     return 0
+
+
+def _tables_of(path: Path, fn: Callable[[dict[str, Any]], str]) -> str:
+    """The tables of one bench's JSON, or a line saying why there are none (a bench still running leaves
+    its file empty; a failed one leaves its log's last line, which is not JSON)."""
+    if not path.is_file():
+        return f"({path} missing)"
+    try:
+        result = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        return f"({path} is not a bench result: {e}; rerun its bench with --json)"
+    return fn(result)
 
 
 if __name__ == "__main__":
