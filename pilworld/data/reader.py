@@ -193,6 +193,23 @@ class EpisodeStore:
         path = self.root / self.video_path.format(video_key=key, chunk_index=chunk, file_index=file)
         return path, float(row.get(f"videos/{key}/from_timestamp") or 0.0)
 
+    def own_video_file(self, index: int, view: str) -> Path | None:
+        """The mp4 of ``view`` if it holds episode ``index`` and nothing else, else None.
+
+        Such a file can be copied byte for byte into another dataset of the same spec instead of being
+        decoded and encoded again (:meth:`EpisodeWriter.append`'s ``video_files``). Files packing several
+        episodes (LeRobot conversions may) return None.
+        """
+        path, t0 = self.video_file(index, view)
+        if t0 != 0.0:
+            return None
+        key = IMAGE_PREFIX + view
+        where = (f"videos/{key}/chunk_index", f"videos/{key}/file_index")
+        mine = tuple(self.episodes[index].get(k) for k in where)
+        if sum(1 for row in self.episodes if tuple(row.get(k) for k in where) == mine) != 1:
+            return None
+        return path
+
     def labels(self, index: int, table: pa.Table) -> dict[str, Any]:
         """PiL-World labels of an episode from its frame rows (``table``) and episodes-table row.
 

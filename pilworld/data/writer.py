@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import fcntl
 import json
+import shutil
+from collections.abc import Callable, Mapping
 from functools import partial
 from pathlib import Path
 from types import TracebackType
@@ -174,9 +176,19 @@ class EpisodeWriter:
             write_parquet(self.root / layout.TASKS, tasks_table(names), durable=self.durable)
         return self._tasks[task]
 
-    def append(self, episode: Episode) -> int:
-        """Commit one episode; returns its episode index. Raises ``ValueError`` if it does not fit."""
+    def append(self, episode: Episode, *, video_files: Mapping[str, Path] | None = None) -> int:
+        """Commit one episode; returns its episode index. Raises ``ValueError`` if it does not fit.
+
+        ``video_files``: per view, an mp4 already holding exactly ``episode``'s frames in this dataset's
+        video mode and fps (an episode copied from another dataset of the same spec); it is copied byte
+        for byte instead of encoding the frames again, which is most of the cost of a copy.
+        """
         episode.check(self.spec)
+        for view, src in (video_files or {}).items():
+            if view not in self.spec.views:
+                raise ValueError(f"video_files: {view!r} is not a view of {self.root} ({sorted(self.spec.views)})")
+            if not Path(src).is_file():
+                raise FileNotFoundError(f"video_files: {view!r}: {src} does not exist")
         e = len(self._rows)
         T = episode.length
         chunk, file = layout.chunk_file(e)
@@ -222,7 +234,10 @@ class EpisodeWriter:
         for view in self.spec.views:
             key = self.spec.video_key(view)
             path = layout.video_path(self.root, key, chunk, file)
-            write = partial(encode_video, episode.images[view], fps=fps, mode=self.spec.video_mode)
+            if video_files and view in video_files:
+                write: Callable[[Path], object] = partial(shutil.copyfile, video_files[view])
+            else:
+                write = partial(encode_video, episode.images[view], fps=fps, mode=self.spec.video_mode)
             atomic_write(path, write, durable=self.durable)
             stats[key] = image_stats(episode.images[view])
             row.update(

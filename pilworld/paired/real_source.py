@@ -62,7 +62,12 @@ class RealBranchSource:
         src = self.index[pair_id]
         ep = self.store.load(src)
         extra: dict[str, Any] = {**ep.extra, "real_from": str(self.root), "real_from_index": src}
-        index = writer.append(dataclasses.replace(ep, extra=extra))
+        # Same spec (fps, views, video mode): the source's own mp4s are this episode's frames, copied as they are.
+        files = None
+        if self.store.spec == writer.spec:
+            own = {v: self.store.own_video_file(src, v) for v in writer.spec.views}
+            files = {v: p for v, p in own.items() if p is not None} or None
+        index = writer.append(dataclasses.replace(ep, extra=extra), video_files=files)
         verdicts = [dataclasses.replace(o, episode_index=index) for o in self.outcomes.get(src, [])]
         if verdicts:
             record_outcomes(out_root, verdicts)

@@ -80,6 +80,8 @@ def test_copied_real_branch_equals_the_source_episode(source: Path, copied: tupl
     for v in src.images:
         assert real.images[v].shape == src.images[v].shape
         assert real.images[v].tobytes() == src.images[v].tobytes(), v
+        # Same dataset spec, so the mp4 itself was copied rather than encoded again.
+        assert b.video_file(1, v)[0].read_bytes() == a.video_file(3, v)[0].read_bytes(), v
     np.testing.assert_array_equal(real.state, src.state)
     np.testing.assert_array_equal(real.action, src.action)
     np.testing.assert_array_equal(real.rounds(), src.rounds())
