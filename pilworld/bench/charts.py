@@ -86,7 +86,7 @@ def speed_accuracy_chart(points: Sequence[Mapping[str, Any]], front: Sequence[st
         groups.setdefault(f"{p['preset']} {p['size']}", []).append(p)
     for ax, key, label in (
         (axes[0], "psnr_head", "single-step head-view PSNR, dB (higher is better)"),
-        (axes[1], "abs_delta_sr", "|ΔSR| in closed loop"),
+        (axes[1], "abs_delta_sr", "|ΔSR| in closed loop (lower is better)"),
     ):
         for k, (g, pts) in enumerate(sorted(groups.items())):
             xs = [p["chunk_latency_ms"] for p in pts if p.get(key) is not None]
@@ -115,6 +115,8 @@ def speed_accuracy_chart(points: Sequence[Mapping[str, Any]], front: Sequence[st
                 linestyle="--",
                 label="Pareto front",
             )
+        if key == "abs_delta_sr":
+            ax.set_ylim(-0.02, 1.02)  # its whole range: one subtask more or less must not look like a trend
         ax.set_xscale("log")
         ax.set_xlabel("chunk latency, ms (log; labels: sampling steps)")
         ax.set_ylabel(label)
