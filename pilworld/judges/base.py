@@ -118,7 +118,7 @@ def judge_dataset(
     """Run ``judges`` on the episodes of ``root`` (all by default) and record their verdicts.
 
     ``workers`` processes judge episodes in parallel (``None``: one per CPU; judging is pure CPU, an
-    image-only judge takes ~1–2 s per episode). Verdicts are written every ``flush_every`` episodes,
+    image-only judge takes ~0.7 s per 76-frame episode). Verdicts are written every ``flush_every`` episodes,
     so an interrupted pass keeps what it finished and :func:`unjudged_episodes` resumes it.
     """
     from pilworld.collection.workers import process_map, worker_count
