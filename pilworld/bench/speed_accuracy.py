@@ -154,7 +154,8 @@ def run_speed_accuracy(
     chosen_models = list(models or default_models())
     chosen_steps = tuple(steps or (QUICK_STEPS if quick else STEPS))
     n_clips = clips or (QUICK_CLIPS if quick else FULL_CLIPS)
-    n_repeats = repeats or (QUICK_REPEATS if quick else FULL_REPEATS)
+    # `is None`, not `or`: an explicit 0 must reach the bench's own check and be refused, not become the default.
+    n_repeats = repeats if repeats is not None else (QUICK_REPEATS if quick else FULL_REPEATS)
     loop = (not quick) if closed_loop is None else closed_loop
     for m in chosen_models:  # a missing model fails before minutes of data collection and earlier points
         if not m.untrained and m.path:

@@ -385,12 +385,14 @@ def test_cli_rejects_bad_steps_and_clips(
     assert not out.exists()
 
 
-@pytest.mark.parametrize(("quick", "repeats", "want"), [(True, None, 3), (False, None, 10), (True, 5, 5)])
+@pytest.mark.parametrize(
+    ("quick", "repeats", "want"), [(True, None, 3), (False, None, 10), (True, 5, 5), (False, 0, 0)]
+)
 def test_timed_calls_per_point(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path, quick: bool, repeats: int | None, want: int
 ) -> None:
     """Quick mode times 3 calls per point (the untrained base at 16 steps costs ~8 s a call), full mode 10;
-    an explicit --repeats wins either way; the JSON says how many."""
+    an explicit --repeats wins either way (0 too: the bench itself refuses it); the JSON says how many."""
     timed: list[int] = []
 
     def bench(model: Any, **kw: Any) -> dict[str, Any]:
