@@ -13,6 +13,7 @@ land on the pixels the policy and the world model see.
 from __future__ import annotations
 
 import dataclasses
+import math
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Literal
@@ -24,7 +25,7 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 from calib.camera_model import CameraModel
 from pilworld.config.hardware import HardwareConfig
 from pilworld.config.loader import StrictModel, load_yaml_model
-from pilworld.geometry import pose_to_matrix
+from pilworld.geometry import invert_transform, pose_to_matrix
 from pilworld.kinematics.dual_arm import ArmMount, DualArmKinematics
 from pilworld.kinematics.ur_dh import dh_params
 from pilworld.types import ARM_SIDES, HEAD_VIEW, RobotSpec, dual_arm_joint_names
@@ -40,6 +41,19 @@ class Pose(StrictModel):
 
     def matrix(self) -> NDArray[np.float64]:
         return pose_to_matrix(np.array(self.xyz), np.array(self.rpy))
+
+
+def _resolve_file(value: str | None, info: ValidationInfo) -> str | None:
+    """A camera file path, relative paths resolved against the rig file's folder; it must exist."""
+    if value is None:
+        return None
+    path = Path(value).expanduser()
+    base = (info.context or {}).get("base_dir")
+    if not path.is_absolute() and base is not None:
+        path = Path(base) / path
+    if not path.is_file():
+        raise ValueError(f"camera file not found: {path}")
+    return str(path)
 
 
 class ImageSize(StrictModel):
@@ -96,23 +110,29 @@ class HeadCameraConfig(StrictModel):
     @field_validator("file")
     @classmethod
     def _resolve(cls, value: str | None, info: ValidationInfo) -> str | None:
-        if value is None:
-            return None
-        path = Path(value).expanduser()
-        base = (info.context or {}).get("base_dir")
-        if not path.is_absolute() and base is not None:
-            path = Path(base) / path
-        if not path.is_file():
-            raise ValueError(f"camera file not found: {path}")
-        return str(path)
+        return _resolve_file(value, info)
 
 
 class WristCameraConfig(StrictModel):
-    """A camera fixed to one gripper: its pose relative to that arm's TCP (OpenCV axes: z forward)."""
+    """A camera fixed to one gripper: its pose relative to that arm's TCP (OpenCV axes: z forward).
+
+    ``pose_in_tcp`` and ``fovy_deg`` are the designed mount (the simulator places the camera there, and
+    eye-in-hand calibration plans its poses from it). ``file``, written by ``pilworld calibrate handeye
+    --camera NAME``, is the calibrated camera: a ``pilworld.camera_model/v1`` YAML whose ``T_cam_base``
+    maps points of this arm's **TCP frame** into the camera frame (``T_cam_tcp``), with the measured
+    intrinsics; when given, it replaces the designed mount and field of view everywhere the rig's
+    geometry is used (control video, reprojection prior, checks).
+    """
 
     arm: Literal["left", "right"]
     pose_in_tcp: Pose
     fovy_deg: float = Field(default=70.0, gt=1.0, lt=170.0)
+    file: str | None = None  # calibrated wrist camera (T_cam_base = T_cam_tcp); relative to the rig file
+
+    @field_validator("file")
+    @classmethod
+    def _resolve(cls, value: str | None, info: ValidationInfo) -> str | None:
+        return _resolve_file(value, info)
 
 
 class RigConfig(StrictModel):
@@ -177,6 +197,24 @@ class RigConfig(StrictModel):
             )
         assert self.head_camera.file is not None  # guaranteed by HeadCameraConfig._exactly_one
         return letterbox(CameraModel.from_yaml(self.head_camera.file), width, height)
+
+    def wrist_camera_model(self, name: str) -> CameraModel:
+        """Wrist camera ``name`` at ``image_size``; its ``T_cam_base`` is ``T_cam_tcp`` (TCP frame → camera).
+
+        From the calibration ``file`` when the rig has one (letterboxed like the images), else the
+        designed mount: an undistorted pinhole of ``fovy_deg`` (square pixels, centred principal
+        point, MuJoCo's convention) at ``pose_in_tcp``.
+        """
+        if name not in self.wrist_cameras:
+            raise ValueError(f"wrist camera {name!r}: rig {self.name!r} has wrist cameras {list(self.wrist_cameras)}")
+        cam = self.wrist_cameras[name]
+        width, height = self.image_size.width, self.image_size.height
+        if cam.file is not None:
+            return dataclasses.replace(letterbox(CameraModel.from_yaml(cam.file), width, height), name=name)
+        f = height / (2.0 * math.tan(math.radians(cam.fovy_deg) / 2.0))
+        K = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+        T_cam_tcp = invert_transform(cam.pose_in_tcp.matrix())
+        return CameraModel(K=K, dist=np.zeros(0), T_cam_base=T_cam_tcp, width=width, height=height, name=name)
 
     def robot_spec(self) -> RobotSpec:
         """Joint names and limits of the 14-d vector, cameras, rate and image size."""
