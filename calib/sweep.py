@@ -58,9 +58,16 @@ __all__ = [
     "AXES",
     "DEFAULT_VALUES",
     "HEAD_CAMERA",
+    "IN_HAND_DEFAULTS",
+    "IN_HAND_METHODS",
+    "IN_HAND_VALUES",
     "SWEEP_BOARD",
     "THRESHOLD_DEG",
     "THRESHOLD_MM",
+    "T_BASE_BOARD",
+    "T_TCP_CAM",
+    "WRIST_CAMERA",
+    "EyeInHandTrial",
     "HandEyeTrial",
     "MethodStats",
     "SweepConditions",
@@ -68,9 +75,12 @@ __all__ = [
     "TrialOutcome",
     "available_methods",
     "count_points",
+    "make_in_hand_trial",
     "make_trial",
     "opencv_methods_available",
+    "run_in_hand_sweep",
     "run_sweep",
+    "solve_in_hand_trial",
     "solve_trial",
     "sweep_points",
 ]
@@ -480,3 +490,200 @@ def run_sweep(
 def count_points(values: Mapping[str, Sequence[float]] | None = None) -> int:
     """Number of sweep points (axis values) in ``values`` (default :data:`DEFAULT_VALUES`)."""
     return sum(len(v) for v in (values if values is not None else DEFAULT_VALUES).values())
+
+
+# ---------------------------------------------------------------------- eye-in-hand (wrist cameras)
+
+#: A wrist camera like the simulated rig's (80° vertical field of view) at 1024x1024, mild distortion.
+WRIST_CAMERA: Final = CameraModel(
+    K=np.array([[610.2, 0.0, 511.5], [0.0, 610.2, 511.5], [0.0, 0.0, 1.0]]),
+    dist=np.array([-0.04, 0.015, 0.0002, -0.0001, 0.0]),
+    T_cam_base=np.eye(4),
+    width=1024,
+    height=1024,
+    name="wrist",
+)
+#: Camera frame → TCP frame: the simulated rig's wrist mount (beside the palm, tilted towards the fingers).
+T_TCP_CAM: Final = rigid(rotation_exp([0.0, 0.0, math.pi / 2]) @ rotation_exp([-0.35, 0.0, 0.0]), [0.075, 0.0, -0.08])
+#: Board frame → base frame: the board flat on the table (board z, into the board, points down).
+T_BASE_BOARD: Final = rigid(np.diag([1.0, -1.0, -1.0]), [0.35, 0.15, 0.0])
+#: Defaults of the eye-in-hand sweep: the camera 0.38 m from the board centre, ±5 cm offsets.
+IN_HAND_DEFAULTS: Final = SweepConditions(depth_m=0.38, offset_m=0.05)
+#: The eye-in-hand sweep: a few values per axis (spans 2° and 6°: refused and just accepted).
+IN_HAND_VALUES: Final[dict[str, tuple[float, ...]]] = {
+    "pixel_noise": (0.0, 0.3, 1.0),
+    "fk_noise": (0.0, 0.02, 0.05),
+    "poses": (3, 10, 20),
+    "rotation_span": (2.0, 6.0, 40.0),
+}
+IN_HAND_METHODS: Final = ("park_martin", "shah", "refined")
+
+
+@dataclass(frozen=True, eq=False)
+class EyeInHandTrial:
+    """One synthetic wrist-camera calibration: what the solvers get and the truth they should return."""
+
+    T_base_tcp: FloatArray  #: ``(N, 4, 4)`` FK poses handed to the solvers (with FK noise)
+    T_base_tcp_true: FloatArray  #: ``(N, 4, 4)`` the exact TCP poses
+    T_cam_board: FloatArray  #: ``(N, 4, 4)`` solvePnP board poses from the noisy corners
+    board_points: FloatArray  #: ``(n, 3)`` board-frame corners, metres
+    image_points: FloatArray  #: ``(N, n, 2)`` noisy detected pixels
+    camera: CameraModel  #: the true intrinsics (its ``T_cam_base`` is unused)
+    T_tcp_cam: FloatArray  #: the answer
+    T_base_board: FloatArray  #: where the board lies
+
+
+def make_in_hand_trial(
+    conditions: SweepConditions,
+    seed: int,
+    camera: CameraModel = WRIST_CAMERA,
+    board: ChArUcoBoard = SWEEP_BOARD,
+    T_tcp_cam: FloatArray = T_TCP_CAM,
+    T_base_board: FloatArray = T_BASE_BOARD,
+) -> EyeInHandTrial:
+    """Trial ``seed``: the camera looks at the fixed board from ``depth_m``, tilted like :func:`make_trial`'s board.
+
+    The camera starts frontal above the board centre (camera axes = board axes), offset by up to
+    ``offset_m`` per axis, and is tilted about the board centre by rotation vectors of at most ``span/2``
+    (the first two ``±span/2`` about one axis). FK noise is applied to the TCP poses as in :func:`make_trial`.
+    """
+    rng = np.random.default_rng(seed)
+    P = board.corner_points()
+    w_m, h_m = board.size_m
+    centre_b = np.array([w_m / 2.0, h_m / 2.0, 0.0])
+    half = math.radians(conditions.rotation_span_deg) / 2.0
+    first_axis = _unit(rng)
+    T_cam_tcp = invert_transform(T_tcp_cam)
+    G_true, C, imgs = [], [], []
+    for i in range(conditions.poses):
+        for _ in range(1000):
+            w = (1.0 - 2.0 * i) * half * first_axis if i < 2 else rng.uniform(0.3, 1.0) * half * _unit(rng)
+            R = rotation_exp(w)
+            centre_c = np.array([0.0, 0.0, conditions.depth_m]) + rng.uniform(-1.0, 1.0, 3) * conditions.offset_m
+            T_cam_board = rigid(R, centre_c - R @ centre_b)
+            proj = camera.with_pose(T_cam_board).project_detailed(P)
+            uv, margin = proj.uv, 4.0
+            if (
+                proj.visible.all()
+                and (uv >= margin).all()
+                and (uv[:, 0] <= camera.width - 1 - margin).all()
+                and (uv[:, 1] <= camera.height - 1 - margin).all()
+            ):
+                break
+        else:  # pragma: no cover - the defaults always fit
+            raise ValueError(f"make_in_hand_trial: the board does not fit the image at depth {conditions.depth_m} m")
+        noisy = uv + rng.normal(0.0, conditions.pixel_noise_px, uv.shape)
+        # T_base_tcp · T_tcp_cam · T_cam_board = T_base_board
+        G_true.append(T_base_board @ invert_transform(T_cam_board) @ T_cam_tcp)
+        C.append(_pnp(P, noisy, camera))
+        imgs.append(noisy)
+    sigma = math.radians(conditions.fk_noise_deg)
+    G_meas = [
+        g @ rigid(rotation_exp(rng.normal(0.0, sigma, 3)), rng.normal(0.0, sigma * conditions.fk_lever_m, 3))
+        for g in G_true
+    ]
+    return EyeInHandTrial(
+        T_base_tcp=np.asarray(G_meas),
+        T_base_tcp_true=np.asarray(G_true),
+        T_cam_board=np.asarray(C),
+        board_points=P,
+        image_points=np.asarray(imgs),
+        camera=camera,
+        T_tcp_cam=np.asarray(T_tcp_cam, dtype=np.float64),
+        T_base_board=np.asarray(T_base_board, dtype=np.float64),
+    )
+
+
+def solve_in_hand_trial(trial: EyeInHandTrial, methods: Sequence[str] = IN_HAND_METHODS) -> dict[str, TrialOutcome]:
+    """Run the eye-in-hand methods on ``trial``; errors of ``T_tcp_cam`` against the truth."""
+    from calib.handeye_in_hand import (  # calib.handeye_in_hand imports nothing from here
+        refine_eye_in_hand,
+        solve_eye_in_hand,
+    )
+
+    unknown = [m for m in methods if m not in IN_HAND_METHODS]
+    if unknown:
+        raise ValueError(f"methods: unknown {unknown}; available: {', '.join(IN_HAND_METHODS)}")
+    G, C = trial.T_base_tcp, trial.T_cam_board
+    out: dict[str, TrialOutcome] = {}
+    shah_cache: list[Any] = []
+
+    def record(name: str, fn: Callable[[], FloatArray]) -> None:
+        t0 = time.perf_counter()
+        try:
+            T = fn()
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            out[name] = TrialOutcome(name, math.nan, math.nan, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
+            return
+        dt, dr = pose_difference(T, trial.T_tcp_cam)
+        out[name] = TrialOutcome(name, 1e3 * dt, dr, None, time.perf_counter() - t0)
+
+    def shah() -> FloatArray:
+        shah_cache.append(solve_eye_in_hand(G, C, method="shah"))
+        T: FloatArray = shah_cache[-1].T_tcp_cam
+        return T
+
+    def refined() -> FloatArray:
+        start = shah_cache[-1] if shah_cache else solve_eye_in_hand(G, C, method="shah")
+        n = trial.image_points.shape[0]
+        result = refine_eye_in_hand(
+            start.T_tcp_cam,
+            start.T_base_board,
+            G,
+            [trial.board_points] * n,
+            list(trial.image_points),
+            trial.camera.K,
+            trial.camera.dist,
+        )
+        T: FloatArray = result.T_tcp_cam
+        return T
+
+    if "park_martin" in methods:
+        record("park_martin", lambda: solve_eye_in_hand(G, C, method="park").T_tcp_cam)
+    if "shah" in methods or "refined" in methods:
+        record("shah", shah)
+    if "refined" in methods:
+        record("refined", refined)
+    return {m: out[m] for m in methods}
+
+
+def run_in_hand_sweep(
+    trials: int = 10,
+    *,
+    defaults: SweepConditions = IN_HAND_DEFAULTS,
+    values: Mapping[str, Sequence[float]] | None = None,
+    methods: Sequence[str] = IN_HAND_METHODS,
+    seed: int = 0,
+    progress: Callable[[int], object] | None = None,
+) -> SweepResult:
+    """The eye-in-hand stability sweep: error of ``T_tcp_cam`` per method against noise, poses and span.
+
+    Same protocol as :func:`run_sweep` (each axis varied with the others at ``defaults``, trial ``k`` seeded
+    ``seed + k``, refusals counted apart), on :func:`make_in_hand_trial` scenes, without OpenCV's methods.
+    """
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
+        raise ValueError(f"trials: expected an integer >= 1, got {trials!r}")
+    t_start = time.perf_counter()
+    axes: dict[str, dict[str, list[MethodStats]]] = {}
+    times: dict[str, list[float]] = {m: [] for m in methods}
+    for axis, value, cond in sweep_points(defaults, values if values is not None else IN_HAND_VALUES):
+        per_method: dict[str, list[TrialOutcome]] = {m: [] for m in methods}
+        for k in range(trials):
+            for m, outcome in solve_in_hand_trial(make_in_hand_trial(cond, seed + k), methods).items():
+                per_method[m].append(outcome)
+                times[m].append(outcome.seconds)
+            if progress is not None:
+                progress(1)
+        for m in methods:
+            axes.setdefault(axis, {}).setdefault(m, []).append(_stats(value, per_method[m]))
+    return SweepResult(
+        defaults=defaults,
+        trials=trials,
+        seed=seed,
+        methods=tuple(methods),
+        opencv_version=cv2.__version__,
+        opencv_methods_available=(),
+        axes=axes,
+        seconds=time.perf_counter() - t_start,
+        method_ms_median={m: 1e3 * float(np.median(t)) for m, t in times.items() if t},
+    )
