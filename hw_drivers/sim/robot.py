@@ -28,6 +28,7 @@ from hw_drivers.sim.board_mount import BoardMount
 from hw_drivers.sim.gl import make_renderer, mujoco
 from hw_drivers.sim.poses import HOME_Q14
 from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, settings_for
+from hw_drivers.sim.table_board import TableBoard
 from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
@@ -61,10 +62,12 @@ class SimRobot:
         task: str | Task = "sort_cubes",
         *,
         board_mount: BoardMount | None = None,
+        table_board: TableBoard | None = None,
     ) -> None:
         self.rig = rig if isinstance(rig, RigConfig) else RigConfig.load(rig)
         self.task = make_task(task) if isinstance(task, str) else task
         self.board_mount = board_mount  # a calibration board on one gripper (visual only), or None
+        self.table_board = table_board  # a calibration board lying on the table (visual only), or None
         base = self.rig.robot_spec()
         speeds = dual_arm_speed_caps()
         self._spec = RobotSpec(
@@ -77,7 +80,9 @@ class SimRobot:
             max_joint_speed=speeds,
         )
         self.settings = settings_for(self.rig)
-        self.xml = build_mjcf(self.rig, self.task.objects(), self.task.fixtures(), board_mount=board_mount)
+        self.xml = build_mjcf(
+            self.rig, self.task.objects(), self.task.fixtures(), board_mount=board_mount, table_board=table_board
+        )
         self._model: Any = None
         self._data: Any = None
         self._renderer: Any = None
@@ -101,6 +106,8 @@ class SimRobot:
         if self._model is not None:
             return
         assets = self.board_mount.assets() if self.board_mount is not None else None
+        if self.table_board is not None:
+            assets = {**(assets or {}), **self.table_board.assets()}
         model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}", assets)
         self._model = model
         self._data = mujoco.MjData(model)
@@ -247,7 +254,9 @@ class SimRobot:
                 new.check_index(subtask)
                 self.disconnect()
                 self.task = new
-                self.xml = build_mjcf(self.rig, new.objects(), new.fixtures(), board_mount=self.board_mount)
+                self.xml = build_mjcf(
+                    self.rig, new.objects(), new.fixtures(), board_mount=self.board_mount, table_board=self.table_board
+                )
                 self.connect()
         self.task.check_index(subtask)
         _check_int("history", history, minimum=0)
