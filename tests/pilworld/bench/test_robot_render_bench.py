@@ -13,6 +13,7 @@ from hw_drivers.sim.poses import HOME_Q14
 from pilworld.bench.robot_render import (
     JOINT_SPAN,
     TABLE_CLEARANCE,
+    _Sampler,
     main,
     robot_geom_parts,
     run_robot_render_accuracy,
@@ -44,6 +45,11 @@ def test_sampler_per_arm_within_span_and_above_the_table(robot: RobotModel) -> N
     pos, _ = robot.geom_poses(q)
     fingers = np.isin(robot.geom_part, (PART_IDS["left_fingers"], PART_IDS["right_fingers"]))
     assert pos[:, fingers, 2].min() > TABLE_CLEARANCE
+    # The collision check sees two arms swung into each other about their base joints.
+    sampler = _Sampler(robot)
+    crossed = HOME_Q14.copy()
+    crossed[[0, 7]] += (-1.2, 1.2)
+    assert sampler.arms_collide(crossed) and not sampler.arms_collide(HOME_Q14)
     again, _, _ = sample_configs(robot, 20, seed=1)
     assert np.array_equal(q, again)
     with pytest.raises(ValueError, match="configs_per_arm"):
