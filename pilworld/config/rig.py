@@ -135,6 +135,43 @@ class WristCameraConfig(StrictModel):
         return _resolve_file(value, info)
 
 
+class RobotModelConfig(StrictModel):
+    """The user's own MJCF robot model, rendered by the control video instead of the generated one.
+
+    The file holds the robot only (no table), in the rig frame. ``arm_joints`` name the six hinge
+    joints of each arm in the 14-d order; ``finger_joints`` the joints a grip value drives (each set to
+    ``lower + grip · (upper − lower)`` of its range, so grip 1 = open must be the upper end). Geoms of
+    bodies at or below a finger joint are that arm's fingers; the other geoms below the arm's first joint's
+    parent body are the arm. The rig's DH kinematics (``arms``) must describe the same arms: the TCP and
+    the wrist cameras are placed by it.
+    """
+
+    mjcf: str  # path of the MJCF file; relative paths resolve against the rig file
+    arm_joints: dict[Literal["left", "right"], list[str]]
+    finger_joints: dict[Literal["left", "right"], list[str]] = Field(default_factory=dict)
+
+    @field_validator("mjcf")
+    @classmethod
+    def _resolve_mjcf(cls, value: str, info: ValidationInfo) -> str:
+        path = Path(value).expanduser()
+        base = (info.context or {}).get("base_dir")
+        if not path.is_absolute() and base is not None:
+            path = Path(base) / path
+        if not path.is_file():
+            raise ValueError(f"robot model file not found: {path}")
+        return str(path)
+
+    @field_validator("arm_joints")
+    @classmethod
+    def _six_joints(cls, value: dict[str, list[str]]) -> dict[str, list[str]]:
+        for side in ARM_SIDES:
+            if side not in value:
+                raise ValueError(f"arm_joints: missing {side!r} (need six joint names per arm)")
+            if len(value[side]) != 6:
+                raise ValueError(f"arm_joints.{side}: expected six joint names, got {len(value[side])}")
+        return value
+
+
 class RigConfig(StrictModel):
     """A dual-arm rig: the single source of its geometry for the simulator, Γ and calibration checks."""
 
@@ -146,6 +183,7 @@ class RigConfig(StrictModel):
     head_camera: HeadCameraConfig
     wrist_cameras: dict[str, WristCameraConfig] = Field(default_factory=dict)
     hardware: HardwareConfig | None = None  # drivers of a real rig (or its protocol fakes); None: simulated
+    robot_model: RobotModelConfig | None = None  # own MJCF for the control video's render; None: generated
 
     @model_validator(mode="after")
     def _hardware_cameras(self) -> RigConfig:

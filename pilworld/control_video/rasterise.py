@@ -1,0 +1,439 @@
+"""The analytic robot renderer: the robot's convex primitives projected exactly and filled by OpenCV.
+
+Every robot geom is convex (box, cylinder, capsule, sphere, ellipsoid; a mesh by its vertices' hull),
+and a pinhole camera maps the convex hull of a point set onto the convex hull of the projected points.
+So each geom's silhouette is the convex hull of the projection of a few generating points:
+
+* box: its 8 corners (exact);
+* cylinder: its two end circles (exact up to the polygon sampling of a circle);
+* sphere: its silhouette circle, the circle where the cone of view rays touches it — centre
+  ``c (1 − r²/|c|²)``, radius ``r √(|c|² − r²)/|c|``, in the plane normal to ``c`` (exact);
+* capsule: the silhouette circles of its two end spheres (the capsule is their convex hull; exact).
+
+Circles are sampled with ``CIRCLE_POINTS`` points on a radius between the inscribed and circumscribed
+polygon (area error < 0.01 %). OpenCV fills every pixel whose square the polygon touches, half a pixel
+more on each side than the pixel-centre rule of MuJoCo's (OpenGL's) rasteriser, so each geom is shrunk
+by half a pixel at its depth before projecting. Geoms are filled far to near (painter's order by their
+centres' distance) into a geom-index buffer, which gives part ids; geoms that cross the camera's near
+plane (a wrist camera beside its own coupling) are clipped to it; lens distortion is applied by
+rendering the pinhole image with a margin and remapping it.
+
+Depth and shading are ray cast only at the pixels the robot covers, against the geom drawn there
+(closed-form ray–box/cylinder/capsule/sphere intersections): the camera-frame depth Z and a headlight
+Lambertian shade of the geom's colour. A pixel on a polygon's edge whose ray just misses the geom
+takes the depth of the ray's closest approach to it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Final
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.camera_model import CameraModel
+from pilworld.control_video import raycast
+from pilworld.control_video.cameras import RigCameras
+from pilworld.control_video.robot_model import BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, SPHERE, RobotModel
+from pilworld.control_video.robot_render import RobotRender
+from pilworld.types import STATE_DIM
+
+CIRCLE_POINTS: Final = 20  # points per sampled circle
+_SHIFT: Final = 4  # OpenCV fixed-point bits: polygon vertices in 1/16 px
+_ONE: Final = 1 << _SHIFT
+AMBIENT: Final = 0.35  # shading: ambient + diffuse · cos(angle to the headlight), like MuJoCo's headlight
+DIFFUSE: Final = 0.65
+SUPPORTED: Final = (SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH)
+
+# Unit circle samples on the "mean" radius of the inscribed (cos) and circumscribed (1) polygons.
+_ANG = np.linspace(0.0, 2.0 * math.pi, CIRCLE_POINTS, endpoint=False)
+_CIRCLE = np.stack([np.cos(_ANG), np.sin(_ANG)], axis=-1) * (0.5 * (1.0 + 1.0 / math.cos(math.pi / CIRCLE_POINTS)))
+_BOX_CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+# A unit sphere's generating points for ellipsoids and for near-plane clipping of round geoms.
+_golden = math.pi * (3.0 - math.sqrt(5.0))
+_k = np.arange(48) + 0.5
+_zs = 1.0 - 2.0 * _k / 48
+_SPHERE_PTS = np.stack(
+    [np.sqrt(1 - _zs**2) * np.cos(_golden * _k), np.sqrt(1 - _zs**2) * np.sin(_golden * _k), _zs], axis=-1
+) * 1.08  # circumscribe the 48-point hull roughly
+
+
+@dataclass(frozen=True, eq=False)
+class _ViewGrid:
+    """What never changes for a view: the pinhole canvas it is drawn on and each pixel's ray."""
+
+    K: NDArray[np.float64]  # pinhole intrinsics of the canvas (principal point shifted by the margin)
+    width: int  # canvas size
+    height: int
+    rays32: NDArray[np.float32]  # (H_c, W_c, 3) ray directions (x, y, 1) of canvas pixels, camera frame
+    planes: NDArray[np.float64]  # (4, 3) inward normals of the canvas frustum's side planes (through 0)
+    remap: tuple[NDArray[np.float32], NDArray[np.float32]] | None  # output pixel → canvas pixel (distortion)
+    out_size: tuple[int, int]  # (width, height) of the output image
+
+
+def _view_grid(camera: CameraModel, max_scale: float = 3.0) -> _ViewGrid:
+    w, h = camera.width, camera.height
+    K = camera.K.copy()
+    if camera.dist.size == 0 or not np.any(camera.dist != 0):
+        cw, ch, remap = w, h, None
+    else:
+        # Where each output pixel's ray lands on the undistorted image plane: the canvas must hold them.
+        u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+        rays = camera.unproject(np.stack([u, v], axis=-1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xn, yn = rays[..., 0] / rays[..., 2], rays[..., 1] / rays[..., 2]
+        pu = K[0, 0] * xn + K[0, 1] * yn + K[0, 2]
+        pv = K[1, 1] * yn + K[1, 2]
+        ok = np.isfinite(pu) & np.isfinite(pv) & (rays[..., 2] > 0)
+        lo_u = max(float(np.min(pu[ok])) - 2, -max_scale * w)
+        hi_u = min(float(np.max(pu[ok])) + 2, (1 + max_scale) * w)
+        lo_v = max(float(np.min(pv[ok])) - 2, -max_scale * h)
+        hi_v = min(float(np.max(pv[ok])) + 2, (1 + max_scale) * h)
+        ou, ov = math.floor(lo_u), math.floor(lo_v)
+        cw, ch = math.ceil(hi_u) - ou + 1, math.ceil(hi_v) - ov + 1
+        K[0, 2] -= ou
+        K[1, 2] -= ov
+        mu = np.where(ok, pu - ou, -1.0).astype(np.float32)
+        mv = np.where(ok, pv - ov, -1.0).astype(np.float32)
+        remap = (mu, mv)
+    uc, vc = np.meshgrid(np.arange(cw, dtype=np.float64), np.arange(ch, dtype=np.float64))
+    y = (vc - K[1, 2]) / K[1, 1]
+    x = (uc - K[0, 2] - K[0, 1] * y) / K[0, 0]
+    grid_rays = np.stack([x, y, np.ones_like(x)], axis=-1).astype(np.float32)
+    # Side planes through the canvas border (one pixel beyond it), inward normals: a geom whose bounding
+    # sphere lies beyond one of them cannot touch the canvas.
+    corners = grid_rays[[0, 0, -1, -1], [0, -1, -1, 0]].astype(np.float64)
+    pad = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=np.float64)
+    corners = corners + pad * np.array([1 / K[0, 0], 1 / K[1, 1], 0])
+    planes = np.stack([np.cross(corners[i], corners[(i + 1) % 4]) for i in range(4)])
+    planes /= np.linalg.norm(planes, axis=-1, keepdims=True)
+    return _ViewGrid(K, cw, ch, grid_rays, planes, remap, (w, h))
+
+
+def _basis(n: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two unit vectors orthogonal to unit vectors ``n`` (..., 3) and to each other."""
+    helper = np.where(np.abs(n[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    e1 = np.cross(n, helper)
+    e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+    return e1, np.cross(n, e1)
+
+
+class AnalyticRobotRenderer:
+    """Render the robot of ``robot`` in every view of ``cameras`` (see the module docstring)."""
+
+    def __init__(self, robot: RobotModel, cameras: RigCameras) -> None:
+        types = robot.geom_type
+        bad = sorted({int(t) for t in types if t not in SUPPORTED})
+        if bad:
+            raise ValueError(
+                f"robot model {robot.source}: geom types {bad} cannot be rasterised analytically "
+                "(box, cylinder, capsule, sphere, ellipsoid, mesh); use backend='mujoco'"
+            )
+        self.robot = robot
+        self.cameras = cameras
+        self.types = types
+        self.size = robot.geom_size
+        self.part_lut = np.concatenate([[0], robot.geom_part]).astype(np.uint8)
+        self.rgb255 = (np.clip(robot.geom_rgba[:, :3], 0.0, 1.0) * 255.0).astype(np.float32)
+        self.size32 = self.size.astype(np.float32)
+        lut = np.zeros((3, 256), dtype=np.uint8)  # geom index + 1 → its colour, per channel
+        lut[:, 1 : len(self.types) + 1] = np.rint(self.rgb255.T).astype(np.uint8)
+        self.colour_lut = [np.ascontiguousarray(lut[c]) for c in range(3)]
+        m = robot.model
+        # MuJoCo clips at znear · extent; the reference renders (and the simulator's cameras) do too.
+        self.near = float(m.vis.map.znear * m.stat.extent)
+        self.grids = {v.name: _view_grid(v.model) for v in cameras.views}
+        self._mesh_pts = self._mesh_points(robot)
+        self._local = self._local_points()
+        self.bound = self._bounding_radii()
+
+    # ------------------------------------------------------------------ geometry
+
+    @staticmethod
+    def _mesh_points(robot: RobotModel) -> dict[int, NDArray[np.float64]]:
+        m = robot.model
+        out = {}
+        for gi, (gid, t) in enumerate(zip(robot.geom_ids, robot.geom_type, strict=True)):
+            if t == MESH:
+                mid = int(m.geom_dataid[gid])
+                start, n = int(m.mesh_vertadr[mid]), int(m.mesh_vertnum[mid])
+                verts = np.asarray(m.mesh_vert[start : start + n], dtype=np.float64)
+                step = max(1, n // 256)  # a hull from ≤ ~256 vertices: enough for a silhouette
+                out[gi] = verts[::step]
+        return out
+
+    def _bounding_radii(self) -> NDArray[np.float64]:
+        """(G,) radius of a sphere about each geom's centre that contains it."""
+        t, s = self.types, self.size
+        r = np.where(t == SPHERE, s[:, 0], 0.0)
+        r = np.where(t == CAPSULE, s[:, 0] + s[:, 1], r)
+        r = np.where(t == CYLINDER, np.hypot(s[:, 0], s[:, 1]), r)
+        r = np.where(t == BOX, np.linalg.norm(s, axis=-1), r)
+        r = np.where(t == ELLIPSOID, s.max(axis=-1), r)
+        for g, pts in self._mesh_pts.items():
+            r[g] = float(np.linalg.norm(pts, axis=-1).max())
+        return r * 1.01
+
+    def _local_points(self) -> NDArray[np.float64]:
+        """(G, S, 3) view-independent generating points in each geom's frame (boxes, cylinders, ...).
+
+        Spheres and capsules get theirs per view (silhouette circles); their rows here are unused.
+        Shorter sets are padded by repeating their first point (the hull does not change).
+        """
+        S = max([2 * CIRCLE_POINTS, 48, *[len(p) for p in self._mesh_pts.values()]])
+        out = np.zeros((len(self.types), S, 3))
+        for g, (t, s) in enumerate(zip(self.types, self.size, strict=True)):
+            if t == BOX:
+                pts = _BOX_CORNERS * s
+            elif t == CYLINDER:
+                ring = np.concatenate([_CIRCLE * s[0], np.zeros((CIRCLE_POINTS, 1))], axis=-1)
+                pts = np.concatenate([ring + [0, 0, s[1]], ring - [0, 0, s[1]]])
+            elif t == ELLIPSOID:
+                pts = _SPHERE_PTS * s
+            elif t == MESH:
+                pts = self._mesh_pts[g]
+            else:
+                pts = np.zeros((1, 3))
+            out[g, : len(pts)] = pts
+            out[g, len(pts) :] = pts[0]
+        return out
+
+    def _points_camera(
+        self, Pc: NDArray[np.float64], Rc: NDArray[np.float64], shrink: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """(N, G, S, 3) generating points in the camera frame; ``shrink`` (N, G) metres off each surface."""
+        N, G = Pc.shape[:2]
+        S = self._local.shape[1]
+        local = np.broadcast_to(self._local, (N, G, S, 3)).copy()
+        t = self.types
+        # Half a pixel inwards (see the module docstring): boxes lose it on every half-size, cylinders on
+        # radius and half-length (the scale keeps the points on the shrunk surface).
+        for kind in (BOX, CYLINDER, ELLIPSOID):
+            sel = t == kind
+            if np.any(sel):
+                s = self.size[sel]  # (g, 3)
+                if kind == CYLINDER:
+                    s = np.stack([s[:, 0], s[:, 0], s[:, 1]], axis=-1)
+                factor = np.clip(1.0 - shrink[:, sel, None] / np.maximum(s[None], 1e-9), 0.2, 1.0)  # (N, g, 3)
+                local[:, sel] *= factor[:, :, None, :]
+        pts = Pc[:, :, None, :] + np.einsum("ngij,ngsj->ngsi", Rc, local)
+        round_ = np.isin(t, (SPHERE, CAPSULE))
+        if np.any(round_):
+            r = np.maximum(self.size[round_, 0][None] - shrink[:, round_], 1e-6)  # (N, g)
+            half = np.where(t[round_] == CAPSULE, self.size[round_, 1], 0.0)
+            axis = Rc[:, round_][..., 2]  # (N, g, 3)
+            ends = [Pc[:, round_] + half[None, :, None] * axis, Pc[:, round_] - half[None, :, None] * axis]
+            rings = [self._silhouette(c, r) for c in ends]  # each (N, g, C, 3)
+            ring_pts = np.concatenate(rings, axis=2)
+            pts[:, round_, : ring_pts.shape[2]] = ring_pts
+            pts[:, round_, ring_pts.shape[2] :] = ring_pts[:, :, :1]
+        return pts
+
+    @staticmethod
+    def _silhouette(c: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Silhouette circles (N, g, C, 3) of spheres at ``c`` (N, g, 3) with radii ``r`` (N, g)."""
+        d2 = np.maximum(np.sum(c * c, axis=-1), (r * 1.0001) ** 2)
+        d = np.sqrt(d2)
+        n = c / d[..., None]
+        centre = c * (1.0 - r * r / d2)[..., None]
+        rho = r * np.sqrt(d2 - r * r) / d
+        e1, e2 = _basis(n)
+        ring = _CIRCLE[None, None, :, 0, None] * e1[:, :, None] + _CIRCLE[None, None, :, 1, None] * e2[:, :, None]
+        out: NDArray[np.float64] = centre[:, :, None] + rho[..., None, None] * ring
+        return out
+
+    def _near_clipped(self, g: int, Pc: NDArray[np.float64], Rc: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """A geom crossing the near plane: its (approximate) hull points clipped to z ≥ near, or None."""
+        t, s = self.types[g], self.size[g]
+        if t in (SPHERE, CAPSULE):
+            half = s[1] if t == CAPSULE else 0.0
+            sph = _SPHERE_PTS * s[0]
+            local = np.concatenate([sph + [0, 0, half], sph - [0, 0, half]])
+        else:
+            local = self._local[g]
+        pts = Pc + local @ Rc.T
+        inside = pts[:, 2] >= self.near
+        if not np.any(inside):
+            return None
+        a, b = pts[inside], pts[~inside]
+        if b.size:
+            # hull(P) ∩ {z ≥ near}: the points inside plus every segment's crossing of the plane.
+            ta = (a[:, None, 2] - self.near) / (a[:, None, 2] - b[None, :, 2])
+            cross = a[:, None] + ta[..., None] * (b[None] - a[:, None])
+            a = np.concatenate([a, cross.reshape(-1, 3)])
+            a[:, 2] = np.maximum(a[:, 2], self.near)
+        return a
+
+    # ------------------------------------------------------------------ drawing
+
+    def render(self, q14: NDArray[np.floating], *, depth: bool = True, shaded: bool = True) -> RobotRender:
+        """Render joint vectors (N, 14) (or one (14,)) in every view; see :class:`RobotRender`."""
+        q = np.asarray(q14, dtype=np.float64)
+        if q.ndim not in (1, 2) or q.shape[-1] != STATE_DIM:
+            raise ValueError(f"q14: expected joint vectors (N, {STATE_DIM}) or ({STATE_DIM},), got shape {q.shape}")
+        if not np.all(np.isfinite(q)):
+            bad = np.argwhere(~np.isfinite(q.reshape(-1, STATE_DIM)))[0].tolist()
+            raise ValueError(f"q14: contains non-finite values (first at [frame, index] {bad})")
+        q = q.reshape(-1, STATE_DIM)
+        pos, rot = self.robot.geom_poses(q)  # (N, G, 3), (N, G, 3, 3) rig frame
+        poses = self.cameras.poses(q)
+        parts: dict[str, NDArray[np.uint8]] = {}
+        depths: dict[str, NDArray[np.float32]] = {}
+        shades: dict[str, NDArray[np.uint8]] = {}
+        for view in self.cameras.views:
+            T = poses[view.name]  # (N, 4, 4)
+            R, t = T[:, :3, :3], T[:, :3, 3]
+            Pc = np.einsum("nij,ngj->ngi", R, pos) + t[:, None]
+            Rc = R[:, None] @ rot
+            grid = self.grids[view.name]
+            ids = self._draw(Pc, Rc, grid)  # (N, H_c, W_c) geom index + 1
+            out_parts = self.part_lut[ids]
+            if depth or shaded:
+                z, shade = self._cast(ids, Pc, Rc, grid)
+            if grid.remap is not None:
+                out_parts = self._remap(out_parts, grid)
+                ids = self._remap(ids, grid)
+                if depth or shaded:
+                    z = self._remap(z, grid)
+                    shade = self._remap(shade, grid)
+            parts[view.name] = out_parts
+            if depth:
+                depths[view.name] = z
+            if shaded:
+                shades[view.name] = shade
+        return RobotRender(parts, depths if depth else None, shades if shaded else None)
+
+    @staticmethod
+    def _remap(img: NDArray[Any], grid: _ViewGrid) -> NDArray[Any]:
+        assert grid.remap is not None
+        mu, mv = grid.remap
+        out = [cv2.remap(frame, mu, mv, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) for frame in img]
+        return np.stack(out)
+
+    def _draw(self, Pc: NDArray[np.float64], Rc: NDArray[np.float64], grid: _ViewGrid) -> NDArray[np.uint8]:
+        N, G = Pc.shape[:2]
+        K = grid.K
+        f = 0.5 * (K[0, 0] + K[1, 1])
+        zc = np.maximum(Pc[..., 2], self.near)
+        shrink = 0.5 * zc / f  # half a pixel at each geom's depth, metres
+        pts = self._points_camera(Pc, Rc, shrink)  # (N, G, S, 3)
+        z = pts[..., 2]
+        zmin, zmax = z.min(axis=-1), z.max(axis=-1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x, y = pts[..., 0] / z, pts[..., 1] / z
+        u = K[0, 0] * x + K[0, 1] * y + K[0, 2]
+        v = K[1, 1] * y + K[1, 2]
+        W, H = grid.width, grid.height
+        front = zmin >= self.near
+        # Bounding spheres outside the canvas frustum (or wholly behind the near plane) are never drawn.
+        inside = np.all(Pc @ grid.planes.T > -self.bound[None, :, None], axis=-1) & (zmax >= self.near)
+        ok = front & inside & (u.max(-1) > -1) & (u.min(-1) < W) & (v.max(-1) > -1) & (v.min(-1) < H)
+        crossing = inside & ~front
+        uv = np.stack([u, v], axis=-1)
+        lim = 8.0 * max(W, H)  # keep fixed-point coordinates far from int32 overflow
+        fixed = np.rint(np.clip(uv, -lim, lim) * _ONE).astype(np.int32)  # (N, G, S, 2)
+        order = np.argsort(-np.linalg.norm(Pc, axis=-1), axis=1)  # far to near, per frame
+        ids = np.zeros((N, H, W), dtype=np.uint8)
+        hull, fill = cv2.convexHull, cv2.fillConvexPoly
+        for n in range(N):
+            img = ids[n]
+            ok_n, cross_n = ok[n], crossing[n]
+            for g in order[n].tolist():
+                if ok_n[g]:
+                    fill(img, hull(fixed[n, g]), g + 1, cv2.LINE_8, _SHIFT)
+                elif cross_n[g]:
+                    cp = self._near_clipped(g, Pc[n, g], Rc[n, g])
+                    if cp is None:
+                        continue
+                    cu = K[0, 0] * cp[:, 0] / cp[:, 2] + K[0, 1] * cp[:, 1] / cp[:, 2] + K[0, 2]
+                    cv_ = K[1, 1] * cp[:, 1] / cp[:, 2] + K[1, 2]
+                    cpts = np.rint(np.clip(np.stack([cu, cv_], -1), -lim, lim) * _ONE).astype(np.int32)
+                    fill(img, hull(cpts), g + 1, cv2.LINE_8, _SHIFT)
+        return ids
+
+    # ------------------------------------------------------------------ depth and shading
+
+    def _cast(
+        self, ids: NDArray[np.uint8], Pc: NDArray[np.float64], Rc: NDArray[np.float64], grid: _ViewGrid
+    ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
+        """Depth Z (N, H, W) and shaded RGB (N, H, W, 3) at the robot's pixels."""
+        N, H, W = ids.shape
+        z_img = np.zeros((N, H, W), dtype=np.float32)
+        shade_img = np.zeros((N, H, W, 3), dtype=np.uint8)
+        flat = ids.reshape(-1)
+        pix = np.flatnonzero(flat)
+        if pix.size == 0:
+            return z_img, shade_img
+        G = Pc.shape[1]
+        g = flat[pix].astype(np.int64) - 1
+        # Pixels grouped by primitive kind, so each kind's rays are one contiguous slice below.
+        perm = np.argsort(self.types[g], kind="stable")
+        pix, g = pix[perm], g[perm]
+        n_idx = pix // (H * W)
+        ng = n_idx * G + g
+        yx = pix % (H * W)
+        # Ray (x, y, 1) in the camera frame, so t is the depth Z; in the geom's frame: o = −Rᵀc, e = Rᵀd.
+        rays = grid.rays32.reshape(-1, 3)
+        dx, dy = rays[yx, 0], rays[yx, 1]
+        # Per (frame, geom) first, then gathered per pixel one contiguous component at a time.
+        Rf = Rc.reshape(-1, 3, 3)
+        cf = Pc.reshape(-1, 3)
+        o_ng = -np.einsum("mjk,mj->km", Rf, cf).astype(np.float32)  # (3, N·G)
+        R_ng = Rf.reshape(-1, 9).T.astype(np.float32)  # (9, N·G), row 3j + k = R[j, k]
+        o = (o_ng[0][ng], o_ng[1][ng], o_ng[2][ng])
+        e = tuple(R_ng[k][ng] * dx + R_ng[3 + k][ng] * dy + R_ng[6 + k][ng] for k in range(3))
+        cz = cf[:, 2].astype(np.float32)
+        c_ng = cf.T.astype(np.float32)
+        s0, s1, s2 = (self.size32[:, k][g] for k in range(3))
+        kinds = self.types[g]
+        t = np.full(g.shape, np.inf, dtype=np.float32)
+        nx, ny, nz = np.zeros_like(t), np.zeros_like(t), np.zeros_like(t)
+        bounds = np.searchsorted(kinds, np.arange(kinds.max() + 2))
+        for kind in (BOX, CYLINDER, CAPSULE, SPHERE, ELLIPSOID):
+            if kind > kinds[-1] or bounds[kind] == bounds[kind + 1]:
+                continue
+            sel = slice(int(bounds[kind]), int(bounds[kind + 1]))
+            os_ = (o[0][sel], o[1][sel], o[2][sel])
+            es = (e[0][sel], e[1][sel], e[2][sel])
+            ss = (s0[sel], s1[sel], s2[sel])
+            if kind == BOX:
+                hit = raycast.hit_box(os_, es, ss)
+            elif kind == CYLINDER:
+                hit = raycast.hit_cylinder(os_, es, ss[0], ss[1])
+            elif kind == CAPSULE:
+                hit = raycast.hit_capsule(os_, es, ss[0], ss[1])
+            elif kind == SPHERE:
+                hit = raycast.hit_sphere(os_, es, ss[0])
+            else:  # an ellipsoid is the unit sphere in coordinates scaled by its half-axes
+                sc = ss
+                th = raycast.hit_sphere(
+                    (os_[0] / sc[0], os_[1] / sc[1], os_[2] / sc[2]),
+                    (es[0] / sc[0], es[1] / sc[1], es[2] / sc[2]),
+                    np.ones_like(sc[0]),
+                )
+                hit = (th[0], th[1] / sc[0], th[2] / sc[1], th[3] / sc[2])
+            t[sel], nx[sel], ny[sel], nz[sel] = hit
+        miss = np.flatnonzero(~np.isfinite(t))
+        if miss.size:
+            # Polygon-edge pixels whose ray grazes past the geom: the ray's closest approach to its centre.
+            m_ng = ng[miss]
+            dxm, dym = dx[miss], dy[miss]
+            t[miss] = (dxm * c_ng[0][m_ng] + dym * c_ng[1][m_ng] + cz[m_ng]) / (dxm * dxm + dym * dym + 1)
+            nx[miss], ny[miss], nz[miss] = -e[0][miss], -e[1][miss], -e[2][miss]
+        t = np.maximum(t, np.float32(self.near))
+        z_img.reshape(-1)[pix] = t
+        # Headlight shading: the light sits at the camera, so cos = n · (−e) / (|n| |e|) in the geom frame.
+        dot = -(nx * e[0] + ny * e[1] + nz * e[2])
+        norm = np.sqrt((nx * nx + ny * ny + nz * nz) * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]))
+        cosang = np.clip(dot / np.maximum(norm, np.float32(1e-12)), 0.0, 1.0)
+        light = np.zeros(N * H * W, dtype=np.float32)
+        light[pix] = np.float32(AMBIENT) + np.float32(DIFFUSE) * cosang
+        light_img = light.reshape(N, H, W)
+        # Colour by geom through per-channel lookup tables (OpenCV, uint8 → uint8), then the light.
+        for ch in range(3):
+            base = cv2.LUT(ids, self.colour_lut[ch]).astype(np.float32)
+            shade_img[..., ch] = np.minimum(base * light_img + 0.5, 255)
+        return z_img, shade_img

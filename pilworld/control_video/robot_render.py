@@ -1,0 +1,86 @@
+"""The robot rendered from its own model in every camera of the rig: part-id masks, depth, shaded images.
+
+``RobotRenderer.from_rig(rig)(q14)`` renders joint vectors (N, 14) — typically the K stride-aligned
+actions of a chunk — in every view: the head camera through its calibrated ``CameraModel``, each wrist
+camera from its mount on the TCP (:mod:`pilworld.control_video.cameras`). The geometry is the robot the
+simulated rig is built from (:mod:`pilworld.control_video.robot_model`). Two backends draw it:
+
+* ``analytic`` (default): the robot's convex primitives projected exactly and filled by OpenCV
+  (:mod:`pilworld.control_video.rasterise`); depth and shading by ray casting at the robot's pixels.
+  Fast enough for every chunk of a rollout.
+* ``mujoco``: MuJoCo's own renderer on the robot-only model (:mod:`pilworld.control_video.robot_render_mujoco`);
+  the reference the analytic backend is tested against, and the way to render a user MJCF with meshes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pilworld.config.rig import RigConfig
+from pilworld.control_video.cameras import RigCameras
+from pilworld.control_video.robot_model import PART_NAMES, RobotModel
+
+Backend = Literal["analytic", "mujoco"]
+BACKENDS: tuple[Backend, ...] = ("analytic", "mujoco")
+
+
+@dataclass(frozen=True, eq=False)
+class RobotRender:
+    """Renders of N joint vectors in each view (all arrays have N on axis 0).
+
+    ``parts``: uint8 part ids (0 background, 1 left arm, 2 left fingers, 3 right arm, 4 right fingers;
+    :data:`~pilworld.control_video.robot_model.PART_NAMES`). ``depth``: float32 camera-frame depth Z in
+    metres, 0 where there is no robot. ``shaded``: uint8 RGB, the robot lit by a headlight on black.
+    ``depth`` and ``shaded`` are None when not asked for.
+    """
+
+    parts: dict[str, NDArray[np.uint8]]  # view → (N, H, W)
+    depth: dict[str, NDArray[np.float32]] | None = None  # view → (N, H, W)
+    shaded: dict[str, NDArray[np.uint8]] | None = None  # view → (N, H, W, 3)
+
+    @property
+    def views(self) -> tuple[str, ...]:
+        return tuple(self.parts)
+
+    @property
+    def mask(self) -> dict[str, NDArray[np.bool_]]:
+        """view → (N, H, W) True where the robot is."""
+        return {v: p > 0 for v, p in self.parts.items()}
+
+    @staticmethod
+    def part_names() -> tuple[str, ...]:
+        return PART_NAMES
+
+
+class RobotRendererBackend(Protocol):
+    """What a backend implements: render (N, 14) joint vectors in every view."""
+
+    cameras: RigCameras
+    robot: RobotModel
+
+    def render(self, q14: NDArray[np.floating], *, depth: bool = True, shaded: bool = True) -> RobotRender: ...
+
+
+def make_robot_renderer(
+    rig: RigConfig,
+    backend: Backend = "analytic",
+    *,
+    robot: RobotModel | None = None,
+    cameras: RigCameras | None = None,
+) -> RobotRendererBackend:
+    """A renderer of ``rig``'s robot in all its cameras; ``robot``/``cameras`` override (stability probes)."""
+    robot = robot or RobotModel.from_rig(rig)
+    cameras = cameras or RigCameras.from_rig(rig)
+    if backend == "analytic":
+        from pilworld.control_video.rasterise import AnalyticRobotRenderer
+
+        return AnalyticRobotRenderer(robot, cameras)
+    if backend == "mujoco":
+        from pilworld.control_video.robot_render_mujoco import MujocoRobotRenderer
+
+        return MujocoRobotRenderer(robot, cameras)
+    raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {backend!r}")
