@@ -6,7 +6,9 @@ warning), calibrates, prints per-view errors, parameter σ and 95 % intervals, i
 held-out error, and writes a ``pilworld.camera_model/v1`` YAML (``T_cam_base`` is the identity until the
 hand-eye calibration fills it in).
 
-``handeye`` calibrates ``T_cam_base`` (eye-to-hand, the board held by a gripper) from a recorded folder
+``handeye`` calibrates the head camera's ``T_cam_base`` (eye-to-hand, the board held by a gripper), or with
+``--camera cam_left_wrist`` a wrist camera's ``T_cam_tcp`` (eye-in-hand, the board flat on the table, the
+camera's arm moving; the YAML goes to ``wrist_cameras.<name>.file``), from a recorded folder
 (``--from DIR``: ``NNN.png`` + ``poses.json``) or, without one, on the simulated rig (pose planner, robot
 moves, renders at ``--resolution``; ``--save DIR`` keeps the folder). It writes the camera model YAML that
 a rig's ``head_camera.file`` points at, and a JSON report beside it (per-arm residuals, rotation span,
@@ -38,6 +40,7 @@ from calib.handeye import DegenerateMotionError
 from calib.intrinsics import IntrinsicsOptions, IntrinsicsResult, calibrate_intrinsics
 from calib.pdf import page_size_points
 from pilworld.config.rig import RigConfig
+from pilworld.types import HEAD_VIEW
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
@@ -70,10 +73,35 @@ def register(sub: Any) -> None:
     i.add_argument("--json", action="store_true", help="print the full report as one JSON object on the last line")
     i.set_defaults(handler=_intrinsics)
 
-    h = cmds.add_parser("handeye", help="eye-to-hand T_cam_base of the head camera, board held by a gripper")
+    h = cmds.add_parser(
+        "handeye",
+        help="hand-eye: the head camera (eye-to-hand, board held by a gripper) or a wrist camera (eye-in-hand, "
+        "board fixed on the table)",
+    )
     h.add_argument("--rig", type=Path, required=True, help="rig config, e.g. configs/rig/sim_dual_ur5e.yaml")
-    h.add_argument("--arm", choices=("left", "right", "both"), default="left", help="arm holding the board")
-    h.add_argument("--out", type=Path, required=True, help="camera model YAML to write (head_camera.file)")
+    h.add_argument(
+        "--camera",
+        default=HEAD_VIEW,
+        help=f"camera to calibrate (default {HEAD_VIEW}, the head camera); a wrist camera, e.g. cam_left_wrist, "
+        "is calibrated eye-in-hand with the arm that carries it",
+    )
+    h.add_argument(
+        "--arm",
+        choices=("left", "right", "both"),
+        default=None,
+        help="head camera: arm holding the board (default left)",
+    )
+    h.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="camera model YAML to write (head_camera.file or wrist_cameras.<name>.file)",
+    )
+    h.add_argument(
+        "--write-rig",
+        type=Path,
+        help="wrist camera: also write a copy of the rig config whose wrist_cameras.<name>.file points at --out",
+    )
     h.add_argument("--report", type=Path, help="JSON report to write (default: --out with suffix .json)")
     h.add_argument(
         "--from", dest="from_dir", type=Path, help="recorded folder (NNN.png + poses.json); default: the simulated rig"
@@ -208,6 +236,11 @@ def _handeye(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     rig = RigConfig.load(args.rig)
+    if args.camera != HEAD_VIEW:
+        return _handeye_wrist(args, rig, start)
+    if args.write_rig is not None:
+        raise ValueError("--write-rig: only for a wrist camera (--camera NAME); set head_camera.file by hand")
+    args.arm = args.arm or "left"
     arms = arms_for(args.arm)
     board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
     if args.from_dir is not None:
@@ -294,6 +327,136 @@ def _handeye(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(report))
     return 0
+
+
+def _handeye_wrist(args: argparse.Namespace, rig: RigConfig, start: float) -> int:
+    """``handeye --camera <wrist camera>``: eye-in-hand, the board fixed on the table, the camera's arm moving."""
+    from pilworld.calibration.recording import Recording
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD
+    from pilworld.calibration.wrist_sim import WristTruth, record_sim_wrist, wrist_arm, wrist_truth_errors
+    from pilworld.calibration.wrist_solve import calibrate_wrist
+
+    name = args.camera
+    arm = wrist_arm(rig, name)  # a one-line error listing the rig's cameras for an unknown name
+    if args.arm is not None and args.arm != arm:
+        raise ValueError(f"--arm {args.arm}: {name} is carried by the {arm} arm (rig config); drop --arm")
+    board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
+    if args.from_dir is not None:
+        recording = Recording.load(args.from_dir)
+        source = str(args.from_dir)
+        print(f"{len(recording.views)} recorded views in {args.from_dir}")
+    else:
+        if args.poses < 1:
+            raise ValueError(f"--poses: expected a number of camera poses >= 1, got {args.poses}")
+        print(
+            f"collecting {name} views of a board on the table of the simulated rig {rig.name!r} "
+            f"({args.resolution} px wide)"
+        )
+        try:
+            recording = record_sim_wrist(
+                rig,
+                name,
+                board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
+                poses=args.poses,
+                seed=args.seed,
+                resolution=args.resolution,
+                log=print,
+            )
+        except DegenerateMotionError as exc:
+            raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
+        source = "simulated rig"
+        if args.save is not None:
+            print(f"saved the views to {recording.save(args.save).parent}")
+    board = board or recording.board
+    if args.camera_model is not None:
+        intrinsics = CameraModel.from_yaml(args.camera_model)
+    elif recording.camera is not None:
+        intrinsics = recording.camera
+    else:
+        raise ValueError(
+            f"--camera-model: needed, since {args.from_dir} has no camera.yaml (calibrate {name}'s intrinsics at the "
+            "resolution of the images with `pilworld calibrate intrinsics --name {name}` first)"
+        )
+    try:
+        result = calibrate_wrist(recording.views, intrinsics, board, rig.kinematics, arm, name)
+    except DegenerateMotionError as exc:
+        raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    result.camera_model().to_yaml(args.out)
+    d = result.to_dict()
+    report: dict[str, Any] = {
+        "format": "pilworld.handeye_report/v1",
+        "calibration": "eye_in_hand",
+        "rig": rig.name,
+        "camera": name,
+        "arm": arm,
+        "source": source,
+        "camera_model": str(args.out),
+        "image_size": [intrinsics.width, intrinsics.height],
+        "board": board.name,
+        **{k: v for k, v in d.items() if k not in ("camera", "arm")},
+    }
+    u = d["uncertainty"]
+    skipped = f", {len(d['skipped'])} skipped" if d["skipped"] else ""
+    closed = ", ".join(f"{m} {v['rms_px']:.3f} px" for m, v in d["closed_form"].items())
+    print(
+        f"{name} ({arm} arm): {d['poses']} poses{skipped}, rotation span {d['rotation_span_deg']:.1f}°, axis spread "
+        f"{d['axis_spread']:.2f}; closed forms {closed}; refined residual RMS {d['residual_rms_px']:.3f} px; "
+        f"σ {u['sigma_translation_mm']:.3f} mm, {u['sigma_rotation_deg']:.4f}°"
+    )
+    truth = WristTruth.from_extra(recording.extra)
+    if truth is not None and truth.camera == name:
+        errors = wrist_truth_errors(rig, result, truth)
+        report["truth"] = errors
+        w, h = errors["board_reproj_image_size"]
+        print(
+            f"vs the simulator's truth: T_tcp_cam off by {errors['translation_err_mm']:.3f} mm and "
+            f"{errors['rotation_err_deg']:.4f}°; board corners drawn off by max {errors['board_reproj_err_px']:.4f} px "
+            f"at {w}x{h}"
+        )
+    report["seconds"] = time.perf_counter() - start
+    report_path = args.report if args.report is not None else args.out.with_suffix(".json")
+    report_path.parent.mkdir(parents=True, exist_ok=True)
+    report_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    print(f"wrote {args.out} and {report_path}")
+    if args.write_rig is not None:
+        _write_rig(args.rig, args.write_rig, name, args.out)
+        report["rig_written"] = str(args.write_rig)
+        print(f"wrote {args.write_rig}: the rig config with wrist_cameras.{name}.file pointing at {args.out}")
+    else:
+        print(f"to use it, set in the rig config {args.rig}:  wrist_cameras: {{{name}: {{file: {args.out}}}}}")
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def _write_rig(rig_path: Path, out: Path, camera: str, model: Path) -> None:
+    """A copy of the rig YAML with ``wrist_cameras.<camera>.file`` = ``model``; other camera files re-based."""
+    import os
+
+    import yaml
+
+    doc = yaml.safe_load(rig_path.read_text(encoding="utf-8"))
+    src, dst = rig_path.resolve().parent, out.resolve().parent
+
+    def rebase(value: str) -> str:
+        path = Path(value).expanduser()
+        return value if path.is_absolute() else os.path.relpath(src / path, dst)
+
+    head = doc.get("head_camera") or {}
+    if head.get("file"):
+        head["file"] = rebase(str(head["file"]))
+    for cam_name, cam in (doc.get("wrist_cameras") or {}).items():
+        if cam_name != camera and cam.get("file"):
+            cam["file"] = rebase(str(cam["file"]))
+    doc["wrist_cameras"][camera]["file"] = os.path.relpath(model.resolve(), dst)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(
+        f"# Written by `pilworld calibrate handeye --camera {camera} --write-rig`: {rig_path} with the calibrated "
+        f"{camera}.\n" + yaml.safe_dump(doc, sort_keys=False),
+        encoding="utf-8",
+    )
+    RigConfig.load(out)  # the copy must load (the model file exists, the fields validate)
 
 
 def _arm_line(name: str, d: dict[str, Any]) -> str:
