@@ -233,14 +233,14 @@ class _Pool:
             "frozen_psnr": [_psnr(self.frozen[i], self.n[i]) for i in idx],
             "gain_db": [_round(_psnr(self.prior[i], self.n[i]) - _psnr(self.frozen[i], self.n[i])) for i in idx],
             "prior_mae": [_round(self.abs[i] / self.n[i]) if self.n[i] else None for i in idx],
-            "fraction": [_round(self.n[i] / 3 / self.total[i]) if self.total[i] else 0.0 for i in idx],
+            "fraction": [_round(self.n[i] / 3 / self.total[i], 4) if self.total[i] else 0.0 for i in idx],
         }
 
     def pooled(self) -> dict[str, Any]:
         """All frames together."""
         n = self.n.sum()
         return {
-            "fraction": _round(n / 3 / self.total.sum()) if self.total.sum() else 0.0,
+            "fraction": _round(n / 3 / self.total.sum(), 4) if self.total.sum() else 0.0,
             "prior_psnr": _psnr(self.prior.sum(), n),
             "frozen_psnr": _psnr(self.frozen.sum(), n),
             "gain_db": _round(_psnr(self.prior.sum(), n) - _psnr(self.frozen.sum(), n)),
@@ -255,21 +255,24 @@ def _psnr(sse: float, n: float) -> float:
     return _round(10.0 * np.log10(255.0**2 / mse))
 
 
-def _round(x: float) -> float:
-    return round(float(x), 2)
+def _round(x: float, digits: int = 2) -> float:
+    return round(float(x), digits)
 
 
 def score_clips(clips: list[Clip], cameras: RigCameras, *, timing_repeats: int = 3) -> dict[str, Any]:
     """Score the prior on ``clips`` (see the module docstring); also times one prior per clip."""
     prior_fn = SceneReprojector(cameras)
     label_fn = SceneReprojector(cameras, interpolation="nearest")
+    plain_fn = SceneReprojector(cameras, match_head_colour=False)
     views = cameras.names
     wrists = tuple(v for v in views if cameras.view(v).moves)
     k = clips[0].commands.shape[0]
     per_view = {v: _Pool(k) for v in views}
     by_source = {(v, s): _Pool(k) for v in wrists for s in (SOURCE_OWN, SOURCE_HEAD)}
     measured = {v: _Pool(k) for v in wrists}
+    plain = {v: _Pool(k) for v in wrists}
     breaks = {name: _Pool(k) for name in _BREAK_ROWS}
+    breaks_by_source = {(name, s): _Pool(k) for name in _BREAK_ROWS for s in (SOURCE_OWN, SOURCE_HEAD)}
     moving = {v: 0 for v in wrists}
     times: list[float] = []
     for clip in clips:
@@ -281,6 +284,7 @@ def score_clips(clips: list[Clip], cameras: RigCameras, *, timing_repeats: int =
             best = min(best, time.perf_counter() - t0)
         times.append(best)
         from_state = prior_fn(clip.images, clip.state, clip.future_states, now_masks, future_masks)
+        unmatched = plain_fn(clip.images, clip.state, clip.commands, now_masks, future_masks)
         label_images = {v: np.repeat(clip.labels[v][..., None], 3, axis=2) for v in views}
         warped_labels = label_fn(label_images, clip.state, clip.commands, now_masks, future_masks)
         for v in views:
@@ -293,8 +297,11 @@ def score_clips(clips: list[Clip], cameras: RigCameras, *, timing_repeats: int =
             for s in (SOURCE_OWN, SOURCE_HEAD):
                 by_source[(v, s)].add(prior.images[v], clip.images[v], true, prior.source[v] == s)
             measured[v].add(from_state.images[v], clip.images[v], true, from_state.valid[v])
+            plain[v].add(unmatched.images[v], clip.images[v], true, unmatched.valid[v])
             for name, sel in _break_masks(prior, warped_labels, clip.future_labels[v], v).items():
                 breaks[name].add(prior.images[v], clip.images[v], true, sel)
+                for s in (SOURCE_OWN, SOURCE_HEAD):
+                    breaks_by_source[(name, s)].add(prior.images[v], clip.images[v], true, sel & (prior.source[v] == s))
 
     wrist_pool = _merge([per_view[v] for v in wrists])
     last = k  # the acceptance frame
@@ -310,10 +317,15 @@ def score_clips(clips: list[Clip], cameras: RigCameras, *, timing_repeats: int =
             f"{v}/{'own' if s == SOURCE_OWN else 'head'}": pool.summary() for (v, s), pool in by_source.items()
         },
         "wrists_from_measured_state": _merge(list(measured.values())).summary(),
+        "wrists_without_colour_match": _merge(list(plain.values())).summary(),
         "plane_breaks": {
             name: pool.pooled()
-            | {"share_of_valid": _round(valid_of_all[name] / total_valid), "what": _BREAK_ROWS[name]}
+            | {"share_of_valid": _round(valid_of_all[name] / total_valid, 4), "what": _BREAK_ROWS[name]}
             for name, pool in breaks.items()
+        },
+        "plane_breaks_by_source": {
+            f"{name}/{'own' if src == SOURCE_OWN else 'head'}": pool.pooled()
+            for (name, src), pool in breaks_by_source.items()
         },
         "plane_breaks_k15": {name: pool.summary(frames=(last,)) for name, pool in breaks.items()},
         "clips_with_moving_wrist": moving,
@@ -372,8 +384,8 @@ def run_reprojection_bench(
     t0 = time.perf_counter()
     if quick:
         tasks = tasks[:1]
-    episodes = episodes if episodes is not None else (1 if quick else 2)
-    subtasks = subtasks if subtasks is not None else (1 if quick else 2)
+    episodes = episodes if episodes is not None else (1 if quick else 3)
+    subtasks = subtasks if subtasks is not None else (1 if quick else 3)
     size = size if size is not None else (64 if quick else 128)
     if episodes < 1 or subtasks < 1 or size < 16:
         raise ValueError(f"episodes, subtasks must be >= 1 and size >= 16, got {episodes}, {subtasks}, {size}")
@@ -410,8 +422,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m pilworld.bench.reprojection", description=__doc__.split("\n")[0])
     parser.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     parser.add_argument("--quick", action="store_true", help="one task, one run, one subtask, 64x64 (seconds)")
-    parser.add_argument("--episodes", type=int, default=None, help="runs per task (default 2; quick 1)")
-    parser.add_argument("--subtasks", type=int, default=None, help="subtasks per run (default 2; quick 1)")
+    parser.add_argument("--episodes", type=int, default=None, help="runs per task (default 3; quick 1)")
+    parser.add_argument("--subtasks", type=int, default=None, help="subtasks per run (default 3; quick 1)")
     parser.add_argument("--size", type=int, default=None, help="image size in pixels (default 128; quick 64)")
     parser.add_argument("--json", action="store_true", help="print the JSON object as the last line")
     args = parser.parse_args(argv)
@@ -439,6 +451,7 @@ def format_table(result: dict[str, Any]) -> str:
         *result["views"].items(),
         ("wrists pooled", result["wrists_pooled"]),
         ("wrists, measured pose", result["wrists_from_measured_state"]),
+        ("wrists, no colour match", result["wrists_without_colour_match"]),
     ]
     for name, s in rows:
         cells = "  ".join(

@@ -69,6 +69,8 @@ _OFF_IMAGE: Final = -1.0e4  # remap coordinate of a target pixel without a sourc
 _METHODS: Final = ("auto", "homography", "remap")
 _PACKED: Final = np.dtype("<u4")  # an RGBA pixel as one little-endian word: alpha is the top byte
 _ALPHA_FULL: Final = np.uint32(_FULL << 24)
+_MIN_MATCH_FRACTION: Final = 0.05  # head/wrist overlap needed to estimate a colour gain
+_GAIN_RANGE: Final = (0.5, 2.0)  # a larger correction is a failed estimate, not an exposure difference
 
 U8 = NDArray[np.uint8]
 Bool = NDArray[np.bool_]
@@ -284,12 +286,20 @@ class SceneReprojector:
 
     ``cameras`` gives every view's model and pose for joint vectors; ``plane_z`` is the height of the
     plane in the rig frame (the table surface is 0); ``interpolation`` ``"linear"`` (images) or
-    ``"nearest"`` (label maps); ``method`` as in :func:`warp_through_plane`. Wrist views fall back to
-    the head view (:data:`~pilworld.types.HEAD_VIEW`) when ``cameras`` has it.
+    ``"nearest"`` (label maps; no colour matching); ``method`` as in :func:`warp_through_plane`. Wrist
+    views fall back to the head view (:data:`~pilworld.types.HEAD_VIEW`) when ``cameras`` has it; with
+    ``match_head_colour`` its pixels are first scaled per channel to the wrist camera's colours (the
+    gain between the head view warped into the current wrist pose and the current wrist frame).
     """
 
     def __init__(
-        self, cameras: RigCameras, plane_z: float = 0.0, *, interpolation: str = "linear", method: str = "auto"
+        self,
+        cameras: RigCameras,
+        plane_z: float = 0.0,
+        *,
+        interpolation: str = "linear",
+        method: str = "auto",
+        match_head_colour: bool = True,
     ) -> None:
         if isinstance(plane_z, bool) or not isinstance(plane_z, int | float) or not np.isfinite(plane_z):
             raise ValueError(f"plane_z: expected a finite height in metres, got {plane_z!r}")
@@ -301,10 +311,11 @@ class SceneReprojector:
         self.plane_z = float(plane_z)
         self.interpolation = interpolation
         self.method = method
+        self.match_head_colour = bool(match_head_colour) and interpolation == "linear"
         self._flag = _INTERPOLATIONS[interpolation]
         self._grids = {v.name: _TargetGrid(v.model) for v in cameras.views}
         self._head: ViewCamera | None = next((v for v in cameras.views if v.name == HEAD_VIEW and not v.moves), None)
-        self._remap = {
+        self._remap_for = {
             (s.name, t.name): _use_remap(s.model, t.model, method)
             for t in cameras.views
             for s in cameras.views
@@ -362,6 +373,8 @@ class SceneReprojector:
                         rgba[head.name], head, poses_now[head.name], view, poses_future[name]
                     )
                     head_ok &= ~own_ok
+                    if self.match_head_colour:
+                        head_packed = self._colour_matched(rgba, head, poses_now, view, head_packed)
                     packed = np.where(head_ok, head_packed, packed)
             source = own_ok.view(np.uint8).copy()  # SOURCE_OWN = 1 where the own view fills it
             if head_ok is not None:
@@ -372,6 +385,35 @@ class SceneReprojector:
             out_images[name] = _unpack(packed)
             out_source[name] = source
         return ReprojectionPrior(images=out_images, source=out_source)
+
+    def _colour_matched(
+        self,
+        rgba: dict[str, U8],
+        head: ViewCamera,
+        poses_now: dict[str, F64],
+        view: ViewCamera,
+        head_packed: NDArray[np.uint32],
+    ) -> NDArray[np.uint32]:
+        """``head_packed`` scaled per channel to the wrist camera's colours where both see the plane now.
+
+        Two cameras render (or expose) the same table differently; the gain is the ratio of channel sums
+        over the pixels of the *current* wrist frame that the head view also fills.
+        """
+        head_now, ok = self._warp(rgba[head.name], head, poses_now[head.name], view, poses_now[view.name][None])
+        own_now = rgba[view.name]
+        ok &= own_now[..., 3] == _FULL
+        n = int(ok.sum())
+        if n < _MIN_MATCH_FRACTION * ok.size:
+            return head_packed
+        head_rgb = head_now.view(np.uint8).reshape(*ok.shape[1:], 4)[ok[0], :3].astype(np.float64)
+        own_rgb = own_now[ok[0], :3].astype(np.float64)
+        gain = np.clip(own_rgb.sum(axis=0) / np.maximum(head_rgb.sum(axis=0), 1.0), *_GAIN_RANGE)
+        k, h, w = head_packed.shape
+        levels = np.arange(256, dtype=np.float64)[:, None]
+        lut = np.clip(np.rint(levels * np.array([*gain.tolist(), 1.0])), 0, 255).astype(np.uint8)[None]  # (1, 256, 4)
+        scaled = cv2.LUT(head_packed.view(np.uint8).reshape(k * h, w, 4), lut)
+        out: NDArray[np.uint32] = np.asarray(scaled, dtype=np.uint8).reshape(k, h, w, 4).view(_PACKED)[..., 0]
+        return out
 
     def _warp(
         self, src4: U8, source: ViewCamera, T_source: F64, target: ViewCamera, T_target: F64
@@ -384,7 +426,7 @@ class SceneReprojector:
             T_target,
             self.plane_z,
             self._flag,
-            self._remap[(source.name, target.name)],
+            self._remap_for[(source.name, target.name)],
         )
 
 

@@ -152,7 +152,7 @@ def test_fallback_fills_exactly_what_the_wrist_lacks(cameras: RigCameras) -> Non
     green = np.zeros_like(red)
     green[..., 1] = 200
     images = {v: (green if v == "cam_high" else red) for v in cameras.names}
-    prior = SceneReprojector(cameras)(images, HOME_Q14, future)
+    prior = SceneReprojector(cameras, match_head_colour=False)(images, HOME_Q14, future)
     now = cameras.models_at(HOME_Q14)
     v, u = np.mgrid[0:SIZE, 0:SIZE].astype(np.float64)
     for view in WRISTS:
@@ -181,6 +181,20 @@ def lands_inside(
         return hit & vis & (uv >= -0.5 + margin).all(-1) & (uv <= n - 0.5 - margin).all(-1)
 
     return inside(1.01), inside(0.0)
+
+
+def test_head_colours_are_matched_to_the_wrist_camera(cameras: RigCameras) -> None:
+    future = moved(HOME_Q14)
+    images = scene_images(cameras, HOME_Q14)
+    images["cam_high"] = (images["cam_high"] * np.array([0.7, 0.85, 1.0])).astype(np.uint8)  # another exposure
+    errors = {}
+    for match in (False, True):
+        prior = SceneReprojector(cameras, match_head_colour=match)(images, HOME_Q14, future)
+        v = "cam_left_wrist"
+        true = np.stack([render_plane(cameras.models_at(q)[v])[0] for q in future])
+        head = prior.source[v] == SOURCE_HEAD
+        errors[match] = np.abs(prior.images[v].astype(int) - true)[head].mean()
+    assert errors[True] < 4.0 and errors[False] > 3 * errors[True], errors
 
 
 def test_robot_masks_are_respected(cameras: RigCameras) -> None:
