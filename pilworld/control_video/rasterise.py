@@ -42,6 +42,10 @@ from pilworld.control_video.robot_render import RobotRender
 from pilworld.types import STATE_DIM
 
 CIRCLE_POINTS: Final = 20  # points per sampled circle
+# OpenCV's polygon fill covers pixels its outline touches, not pixel centres; drawing 3× finer (inset by
+# half a fine pixel) and reading the fine pixels at the coarse centres brings that error to a sixth of a
+# pixel. Measured against MuJoCo's masks: see docs/control_video.md.
+SUPERSAMPLE: Final = 3
 _SHIFT: Final = 4  # OpenCV fixed-point bits: polygon vertices in 1/16 px
 _ONE: Final = 1 << _SHIFT
 AMBIENT: Final = 0.35  # shading: ambient + diffuse · cos(angle to the headlight), like MuJoCo's headlight
@@ -56,9 +60,10 @@ _BOX_CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz
 _golden = math.pi * (3.0 - math.sqrt(5.0))
 _k = np.arange(48) + 0.5
 _zs = 1.0 - 2.0 * _k / 48
-_SPHERE_PTS = np.stack(
-    [np.sqrt(1 - _zs**2) * np.cos(_golden * _k), np.sqrt(1 - _zs**2) * np.sin(_golden * _k), _zs], axis=-1
-) * 1.08  # circumscribe the 48-point hull roughly
+_SPHERE_PTS = (
+    np.stack([np.sqrt(1 - _zs**2) * np.cos(_golden * _k), np.sqrt(1 - _zs**2) * np.sin(_golden * _k), _zs], axis=-1)
+    * 1.08
+)  # circumscribe the 48-point hull roughly
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,9 +77,18 @@ class _ViewGrid:
     planes: NDArray[np.float64]  # (4, 3) inward normals of the canvas frustum's side planes (through 0)
     remap: tuple[NDArray[np.float32], NDArray[np.float32]] | None  # output pixel → canvas pixel (distortion)
     out_size: tuple[int, int]  # (width, height) of the output image
+    ss: int  # supersampling: the canvas is drawn ss× finer and sampled at the pixel centres
+
+    @property
+    def k_draw(self) -> NDArray[np.float64]:
+        """Intrinsics of the ss× canvas: pixel centre u maps to ss·u + (ss − 1)/2, so sampling rows and
+        columns (ss − 1)/2, (ss − 1)/2 + ss, … of it reads exactly the canvas pixel centres."""
+        A = np.array([[self.ss, 0.0, (self.ss - 1) / 2], [0.0, self.ss, (self.ss - 1) / 2], [0.0, 0.0, 1.0]])
+        out: NDArray[np.float64] = A @ self.K
+        return out
 
 
-def _view_grid(camera: CameraModel, max_scale: float = 3.0) -> _ViewGrid:
+def _view_grid(camera: CameraModel, ss: int, max_scale: float = 3.0) -> _ViewGrid:
     w, h = camera.width, camera.height
     K = camera.K.copy()
     if camera.dist.size == 0 or not np.any(camera.dist != 0):
@@ -110,7 +124,7 @@ def _view_grid(camera: CameraModel, max_scale: float = 3.0) -> _ViewGrid:
     corners = corners + pad * np.array([1 / K[0, 0], 1 / K[1, 1], 0])
     planes = np.stack([np.cross(corners[i], corners[(i + 1) % 4]) for i in range(4)])
     planes /= np.linalg.norm(planes, axis=-1, keepdims=True)
-    return _ViewGrid(K, cw, ch, grid_rays, planes, remap, (w, h))
+    return _ViewGrid(K, cw, ch, grid_rays, planes, remap, (w, h), ss)
 
 
 def _basis(n: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -124,7 +138,7 @@ def _basis(n: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.floa
 class AnalyticRobotRenderer:
     """Render the robot of ``robot`` in every view of ``cameras`` (see the module docstring)."""
 
-    def __init__(self, robot: RobotModel, cameras: RigCameras) -> None:
+    def __init__(self, robot: RobotModel, cameras: RigCameras, supersample: int = SUPERSAMPLE) -> None:
         types = robot.geom_type
         bad = sorted({int(t) for t in types if t not in SUPPORTED})
         if bad:
@@ -145,7 +159,11 @@ class AnalyticRobotRenderer:
         m = robot.model
         # MuJoCo clips at znear · extent; the reference renders (and the simulator's cameras) do too.
         self.near = float(m.vis.map.znear * m.stat.extent)
-        self.grids = {v.name: _view_grid(v.model) for v in cameras.views}
+        if supersample not in (1, 3, 5):
+            raise ValueError(
+                f"supersample: expected 1, 3 or 5 (odd, so pixel centres are sub-pixel centres), got {supersample!r}"
+            )
+        self.grids = {v.name: _view_grid(v.model, supersample) for v in cameras.views}
         self._mesh_pts = self._mesh_points(robot)
         self._local = self._local_points()
         self.bound = self._bounding_radii()
@@ -190,7 +208,8 @@ class AnalyticRobotRenderer:
                 pts = _BOX_CORNERS * s
             elif t == CYLINDER:
                 ring = np.concatenate([_CIRCLE * s[0], np.zeros((CIRCLE_POINTS, 1))], axis=-1)
-                pts = np.concatenate([ring + [0, 0, s[1]], ring - [0, 0, s[1]]])
+                cap = np.array([0.0, 0.0, s[1]])
+                pts = np.concatenate([ring + cap, ring - cap])
             elif t == ELLIPSOID:
                 pts = _SPHERE_PTS * s
             elif t == MESH:
@@ -219,7 +238,7 @@ class AnalyticRobotRenderer:
                     s = np.stack([s[:, 0], s[:, 0], s[:, 1]], axis=-1)
                 factor = np.clip(1.0 - shrink[:, sel, None] / np.maximum(s[None], 1e-9), 0.2, 1.0)  # (N, g, 3)
                 local[:, sel] *= factor[:, :, None, :]
-        pts = Pc[:, :, None, :] + np.einsum("ngij,ngsj->ngsi", Rc, local)
+        pts: NDArray[np.float64] = Pc[:, :, None, :] + np.einsum("ngij,ngsj->ngsi", Rc, local)
         round_ = np.isin(t, (SPHERE, CAPSULE))
         if np.any(round_):
             r = np.maximum(self.size[round_, 0][None] - shrink[:, round_], 1e-6)  # (N, g)
@@ -251,7 +270,8 @@ class AnalyticRobotRenderer:
         if t in (SPHERE, CAPSULE):
             half = s[1] if t == CAPSULE else 0.0
             sph = _SPHERE_PTS * s[0]
-            local = np.concatenate([sph + [0, 0, half], sph - [0, 0, half]])
+            cap = np.array([0.0, 0.0, half])
+            local = np.concatenate([sph + cap, sph - cap])
         else:
             local = self._local[g]
         pts = Pc + local @ Rc.T
@@ -266,6 +286,20 @@ class AnalyticRobotRenderer:
             a = np.concatenate([a, cross.reshape(-1, 3)])
             a[:, 2] = np.maximum(a[:, 2], self.near)
         return a
+
+    def _contains_camera(self, Pc: NDArray[np.float64], Rc: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """(N, G) True where the camera sits inside a geom: MuJoCo culls back faces, so such a geom is unseen."""
+        o = -np.einsum("ngji,ngj->ngi", Rc, Pc)  # camera centre in each geom's frame
+        s = self.size[None]
+        t = self.types[None]
+        radial2 = o[..., 0] ** 2 + o[..., 1] ** 2
+        zc = np.maximum(np.abs(o[..., 2]) - s[..., 1], 0.0)
+        inside = np.where(t == BOX, np.all(np.abs(o) <= s, axis=-1), False)
+        inside |= (t == CYLINDER) & (radial2 <= s[..., 0] ** 2) & (np.abs(o[..., 2]) <= s[..., 1])
+        inside |= (t == CAPSULE) & (radial2 + zc**2 <= s[..., 0] ** 2)
+        inside |= (t == SPHERE) & (np.sum(o * o, axis=-1) <= s[..., 0] ** 2)
+        inside |= (t == ELLIPSOID) & (np.sum((o / np.maximum(s, 1e-12)) ** 2, axis=-1) <= 1.0)
+        return inside
 
     # ------------------------------------------------------------------ drawing
 
@@ -310,12 +344,13 @@ class AnalyticRobotRenderer:
     def _remap(img: NDArray[Any], grid: _ViewGrid) -> NDArray[Any]:
         assert grid.remap is not None
         mu, mv = grid.remap
-        out = [cv2.remap(frame, mu, mv, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) for frame in img]
+        out = [cv2.remap(f, mu, mv, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) for f in img]
         return np.stack(out)
 
     def _draw(self, Pc: NDArray[np.float64], Rc: NDArray[np.float64], grid: _ViewGrid) -> NDArray[np.uint8]:
-        N, G = Pc.shape[:2]
-        K = grid.K
+        N = Pc.shape[0]
+        K = grid.k_draw
+        ss = grid.ss
         f = 0.5 * (K[0, 0] + K[1, 1])
         zc = np.maximum(Pc[..., 2], self.near)
         shrink = 0.5 * zc / f  # half a pixel at each geom's depth, metres
@@ -326,12 +361,12 @@ class AnalyticRobotRenderer:
             x, y = pts[..., 0] / z, pts[..., 1] / z
         u = K[0, 0] * x + K[0, 1] * y + K[0, 2]
         v = K[1, 1] * y + K[1, 2]
-        W, H = grid.width, grid.height
+        W, H = grid.width * ss, grid.height * ss
         front = zmin >= self.near
         # Bounding spheres outside the canvas frustum (or wholly behind the near plane) are never drawn.
         inside = np.all(Pc @ grid.planes.T > -self.bound[None, :, None], axis=-1) & (zmax >= self.near)
         ok = front & inside & (u.max(-1) > -1) & (u.min(-1) < W) & (v.max(-1) > -1) & (v.min(-1) < H)
-        crossing = inside & ~front
+        crossing = inside & ~front & ~self._contains_camera(Pc, Rc)
         uv = np.stack([u, v], axis=-1)
         lim = 8.0 * max(W, H)  # keep fixed-point coordinates far from int32 overflow
         fixed = np.rint(np.clip(uv, -lim, lim) * _ONE).astype(np.int32)  # (N, G, S, 2)
@@ -352,7 +387,8 @@ class AnalyticRobotRenderer:
                     cv_ = K[1, 1] * cp[:, 1] / cp[:, 2] + K[1, 2]
                     cpts = np.rint(np.clip(np.stack([cu, cv_], -1), -lim, lim) * _ONE).astype(np.int32)
                     fill(img, hull(cpts), g + 1, cv2.LINE_8, _SHIFT)
-        return ids
+        o = (ss - 1) // 2
+        return np.ascontiguousarray(ids[:, o::ss, o::ss]) if ss > 1 else ids
 
     # ------------------------------------------------------------------ depth and shading
 

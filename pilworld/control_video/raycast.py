@@ -9,10 +9,12 @@ returns the nearest ``t > 0`` (``inf`` where the ray misses) and the outward nor
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
-F = NDArray[np.float32]
+F = NDArray[np.floating[Any]]  # float32 in practice
 Hit = tuple[F, F, F, F]  # t, nx, ny, nz
 
 _INF = np.float32(np.inf)
@@ -38,7 +40,7 @@ def hit_sphere(o: tuple[F, F, F], e: tuple[F, F, F], r: F, centre_z: F | None = 
     c = ox * ox + oy * oy + oz * oz - r * r
     t, ok = _first_root(b, a, c)
     t = np.where(ok, t, _INF)
-    tt = np.where(ok, t, 0)
+    tt = np.where(ok, t, np.float32(0))
     return t, ox + tt * ex, oy + tt * ey, oz + tt * ez
 
 
@@ -51,7 +53,7 @@ def _cylinder_side(o: tuple[F, F, F], e: tuple[F, F, F], r: F, half: F) -> Hit:
     t, ok = _first_root(b, a, c)
     ok &= np.abs(oz + np.where(ok, t, 0) * ez) <= half
     t = np.where(ok, t, _INF)
-    tt = np.where(ok, t, 0)
+    tt = np.where(ok, t, np.float32(0))
     return t, ox + tt * ex, oy + tt * ey, np.zeros_like(t)
 
 

@@ -12,6 +12,7 @@ Part ids (uint8): 0 background, 1 left arm, 2 left fingers, 3 right arm, 4 right
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, Final
@@ -43,7 +44,8 @@ def _designed_head(rig: RigConfig) -> RigConfig:
     """The rig with a plain pinhole head camera: the robot model needs no camera, and MuJoCo cannot
     place a distorted one (a calibrated real camera), so the generated MJCF gets a stand-in."""
     data = rig.model_dump()
-    data["head_camera"] = {"look_at": {"eye": [0.0, 0.0, 2.0], "target": [0.0, 0.0, 0.0], "up": [1, 0, 0], "fovy_deg": 45}}
+    stand_in = {"eye": [0.0, 0.0, 2.0], "target": [0.0, 0.0, 0.0], "up": [1, 0, 0], "fovy_deg": 45}
+    data["head_camera"] = {"look_at": stand_in}
     for cam in data.get("wrist_cameras", {}).values():
         cam["file"] = None
     data["hardware"] = None
@@ -66,7 +68,10 @@ class RobotModel:
     def from_rig(cls, rig: RigConfig) -> RobotModel:
         """The generated robot of ``rig`` (as the simulator builds it), or ``rig.robot_model``'s MJCF."""
         if rig.robot_model is not None:
-            return cls.from_mjcf(rig.robot_model.mjcf, rig.robot_model.arm_joints, rig.robot_model.finger_joints)
+            cfg = rig.robot_model
+            arms = {str(k): v for k, v in cfg.arm_joints.items()}
+            fingers = {str(k): v for k, v in cfg.finger_joints.items()}
+            return cls.from_mjcf(cfg.mjcf, arms, fingers)
         model = compile_scene(build_mjcf(_designed_head(rig)), f"robot model of rig {rig.name!r}")
         arm_joints = {side: [f"{side}_joint_{i + 1}" for i in range(6)] for side in ARM_SIDES}
         finger_joints = {side: [f"{side}_finger_a", f"{side}_finger_b"] for side in ARM_SIDES}
@@ -74,7 +79,7 @@ class RobotModel:
 
     @classmethod
     def from_mjcf(
-        cls, path: str, arm_joints: dict[str, list[str]], finger_joints: dict[str, list[str]] | None = None
+        cls, path: str, arm_joints: Mapping[str, list[str]], finger_joints: Mapping[str, list[str]] | None = None
     ) -> RobotModel:
         """A user's MJCF robot; ``arm_joints``/``finger_joints`` map the 14-d vector onto its joints."""
         try:
@@ -85,7 +90,7 @@ class RobotModel:
 
     @classmethod
     def _build(
-        cls, model: Any, arm_joints: dict[str, list[str]], finger_joints: dict[str, list[str]], source: str
+        cls, model: Any, arm_joints: Mapping[str, list[str]], finger_joints: Mapping[str, list[str]], source: str
     ) -> RobotModel:
         def joint(name: str, what: str) -> Any:
             try:
