@@ -231,28 +231,35 @@ class _Pool:
             "k": [i + 1 for i in idx],
             "prior_psnr": [_psnr(self.prior[i], self.n[i]) for i in idx],
             "frozen_psnr": [_psnr(self.frozen[i], self.n[i]) for i in idx],
-            "gain_db": [_round(_psnr(self.prior[i], self.n[i]) - _psnr(self.frozen[i], self.n[i])) for i in idx],
+            "gain_db": [_gain(self.prior[i], self.frozen[i], self.n[i]) for i in idx],
             "prior_mae": [_round(self.abs[i] / self.n[i]) if self.n[i] else None for i in idx],
             "fraction": [_round(self.n[i] / 3 / self.total[i], 4) if self.total[i] else 0.0 for i in idx],
         }
 
     def pooled(self) -> dict[str, Any]:
         """All frames together."""
-        n = self.n.sum()
+        n, total = self.n.sum(), self.total.sum()
         return {
-            "fraction": _round(n / 3 / self.total.sum(), 4) if self.total.sum() else 0.0,
+            "fraction": _round(n / 3 / total, 4) if total else 0.0,
             "prior_psnr": _psnr(self.prior.sum(), n),
             "frozen_psnr": _psnr(self.frozen.sum(), n),
-            "gain_db": _round(_psnr(self.prior.sum(), n) - _psnr(self.frozen.sum(), n)),
+            "gain_db": _gain(self.prior.sum(), self.frozen.sum(), n),
             "prior_mae": _round(self.abs.sum() / n) if n else None,
         }
 
 
-def _psnr(sse: float, n: float) -> float:
+def _psnr(sse: float, n: float) -> float | None:
+    """PSNR of the pooled MSE (None without pixels; capped at 100 dB for identical images)."""
     if n == 0:
-        return float("nan")
+        return None
     mse = max(sse / n, 1e-10)
     return _round(10.0 * np.log10(255.0**2 / mse))
+
+
+def _gain(sse_prior: float, sse_frozen: float, n: float) -> float | None:
+    if n == 0:
+        return None
+    return _round(10.0 * np.log10(max(sse_frozen, 1e-10 * n) / max(sse_prior, 1e-10 * n)))
 
 
 def _round(x: float, digits: int = 2) -> float:
@@ -305,9 +312,7 @@ def score_clips(clips: list[Clip], cameras: RigCameras, *, timing_repeats: int =
 
     wrist_pool = _merge([per_view[v] for v in wrists])
     last = k  # the acceptance frame
-    gain_last = _psnr(wrist_pool.prior[last - 1], wrist_pool.n[last - 1]) - _psnr(
-        wrist_pool.frozen[last - 1], wrist_pool.n[last - 1]
-    )
+    gain_last = _gain(wrist_pool.prior[last - 1], wrist_pool.frozen[last - 1], wrist_pool.n[last - 1]) or 0.0
     valid_of_all = {name: pool.pooled()["fraction"] for name, pool in breaks.items()}
     total_valid = sum(valid_of_all.values()) or 1.0
     return {
@@ -455,19 +460,23 @@ def format_table(result: dict[str, Any]) -> str:
     ]
     for name, s in rows:
         cells = "  ".join(
-            f"k={k}: {p:.1f}/{f:.1f} ({v:.0%})"
+            f"k={k}: {_db(p)}/{_db(f)} ({v:.0%})"
             for k, p, f, v in zip(s["k"], s["prior_psnr"], s["frozen_psnr"], s["fraction"], strict=True)
         )
         lines.append(f"  {name:24s} prior/frozen dB (valid)  {cells}")
     lines.append("  plane breaks (wrists, all k): share of valid, prior / frozen dB, prior MAE")
     for name, row in result["plane_breaks"].items():
         lines.append(
-            f"    {name:12s} {row['share_of_valid']:6.1%}  {row['prior_psnr']:5.1f} / {row['frozen_psnr']:5.1f}"
+            f"    {name:12s} {row['share_of_valid']:6.1%}  {_db(row['prior_psnr']):>5s} / {_db(row['frozen_psnr']):>5s}"
             f"  {row['prior_mae']}"
         )
     acc = result["acceptance"]
     lines.append(f"  acceptance ({acc['rule']}): gain {acc['gain_db']} dB -> {'PASS' if acc['passed'] else 'FAIL'}")
     return "\n".join(lines)
+
+
+def _db(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1f}"
 
 
 if __name__ == "__main__":

@@ -104,7 +104,7 @@ def plane_homography(K: F64, T_cam_rig: F64, plane_z: float = 0.0) -> F64:
     M = np.empty((*T.shape[:-2], 3, 3), dtype=np.float64)
     M[..., :, 0] = T[..., :3, 0]
     M[..., :, 1] = T[..., :3, 1]
-    M[..., :, 2] = T[..., :3, 3]
+    M[..., :, 2] = T[..., :3, 2] * plane_z + T[..., :3, 3]
     return np.asarray(K, dtype=np.float64) @ M
 
 
