@@ -120,7 +120,7 @@ def check_eye_in_hand_motion(
                 "rotations about a single axis: every relative rotation of the TCP is about "
                 f"{np.round(axes, 3).tolist()} (TCP frame), so the camera's offset along that axis is unobservable; "
                 "add rotations about a second axis, perpendicular to it (tilt the wrist camera sideways as well "
-                f"as forwards). Details: {text}"
+                f"as forwards; the relative rotation axes' spread is below min_axis_spread = {min_axis_spread})"
             ) from None
         raise DegenerateMotionError(f"{text}. For a wrist camera: {ADD_ROTATIONS}") from None
 

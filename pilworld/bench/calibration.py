@@ -18,6 +18,13 @@ Three parts, each timed:
   (``handeye_synthetic``): the sim's renders carry only the detector's error, not 0.3 px of noise.
 * **Sweep** (:func:`calib.sweep.run_sweep`): translation and rotation error of ``T_cam_base`` per method
   against pixel noise, FK noise, number of poses and rotation span, with a chart (:func:`plot_sweep`).
+* **Wrist cameras** (eye-in-hand, issue #20): per wrist camera of the simulated rig, ``wrist_seeds`` full
+  calibrations (:func:`pilworld.calibration.wrist_sim.run_sim_wrist`: board flat on the table, 20 poses,
+  1024 px) and the *largest* error of ``T_tcp_cam`` over the seeds (``wrist_trans_err_mm_max``,
+  ``wrist_rot_err_deg_max``, per camera under ``wrist``); with the synthetic source (``--quick``), the
+  same from :func:`calib.sweep.make_in_hand_trial` scenes (0.3 px, FK 0.02°). ``wrist_degenerate`` holds
+  the refusal messages of a pure-translation and a single-axis motion set, and ``wrist_sweep`` the
+  eye-in-hand stability sweep (:func:`calib.sweep.run_in_hand_sweep`, a few values per axis).
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import importlib
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Final
 
@@ -42,12 +50,17 @@ from calib.rotations import pose_difference
 from calib.sweep import (
     AXES,
     DEFAULT_VALUES,
+    IN_HAND_DEFAULTS,
+    IN_HAND_VALUES,
     THRESHOLD_DEG,
     THRESHOLD_MM,
     SweepConditions,
     count_points,
+    make_in_hand_trial,
     make_trial,
+    run_in_hand_sweep,
     run_sweep,
+    solve_in_hand_trial,
 )
 from calib.synthetic import perturb_detection, synthetic_views
 from pilworld.bench.common import machine_info
@@ -60,6 +73,8 @@ __all__ = [
     "plot_sweep",
     "run_calibration_bench",
     "synthetic_handeye_figures",
+    "wrist_degeneracy_checks",
+    "wrist_figures",
 ]
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -222,6 +237,128 @@ def handeye_figures(
     return {**{k: syn[k] for k in keys}, "handeye_source": "synthetic", "handeye": detail, "handeye_synthetic": syn}
 
 
+WRIST_CAMERAS: Final = ("cam_left_wrist", "cam_right_wrist")
+
+
+def _wrist_sim(rig_path: Path, camera: str, poses: int, seed: int, resolution: int) -> dict[str, Any]:
+    module = importlib.import_module("pilworld.calibration.wrist_sim")
+    from pilworld.config.rig import RigConfig
+
+    result: dict[str, Any] = dict(
+        module.run_sim_wrist(RigConfig.load(rig_path), camera, poses=poses, seed=seed, resolution=resolution)
+    )
+    return result
+
+
+def _wrist_synthetic(poses: int, seed: int) -> dict[str, Any]:
+    trial = make_in_hand_trial(replace(IN_HAND_DEFAULTS, poses=poses), seed)
+    refined = solve_in_hand_trial(trial, ("refined",))["refined"]
+    if refined.refused is not None:  # pragma: no cover - the defaults always determine the mount
+        raise ValueError(f"synthetic wrist calibration refused: {refined.refused}")
+    return {"wrist_trans_err_mm": refined.trans_mm, "wrist_rot_err_deg": refined.rot_deg, "poses": float(poses)}
+
+
+def wrist_figures(
+    source: str,
+    *,
+    seeds: int = 10,
+    poses: int = 20,
+    resolution: int = 1024,
+    rig_path: Path = DEFAULT_RIG,
+    cameras: Sequence[str] = WRIST_CAMERAS,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Eye-in-hand accuracy per wrist camera over ``seeds`` seeds: the largest errors against the truth.
+
+    ``source`` "sim" renders the simulated rig (:func:`pilworld.calibration.wrist_sim.run_sim_wrist`),
+    "synthetic" uses :func:`calib.sweep.make_in_hand_trial` scenes (0.3 px, FK 0.02°; other draws per camera).
+    """
+    if source not in ("sim", "synthetic"):
+        raise ValueError(f"wrist source: expected sim or synthetic, got {source!r}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ValueError(f"wrist seeds: expected an integer >= 1, got {seeds!r}")
+    per_camera: dict[str, Any] = {}
+    total = seeds * len(cameras)
+    with tqdm(total=total, desc=f"wrist cameras ({source})", unit="run", disable=not progress) as bar:
+        for camera in cameras:
+            runs = []
+            for seed in range(seeds):
+                if source == "sim":
+                    run = _wrist_sim(rig_path, camera, poses, seed, resolution)
+                else:  # other draws per camera (the synthetic scene has no arm)
+                    run = _wrist_synthetic(poses, 70_000 + 1000 * cameras.index(camera) + seed)
+                runs.append(run)
+                bar.update(1)
+            trans = [r["wrist_trans_err_mm"] for r in runs]
+            rot = [r["wrist_rot_err_deg"] for r in runs]
+            entry: dict[str, Any] = {
+                "trans_err_mm_max": float(np.max(trans)),
+                "rot_err_deg_max": float(np.max(rot)),
+                "trans_err_mm_median": float(np.median(trans)),
+                "rot_err_deg_median": float(np.median(rot)),
+                "trans_err_mm_per_seed": trans,
+                "rot_err_deg_per_seed": rot,
+            }
+            if source == "sim":
+                for key in ("board_reproj_err_px", "sigma_translation_mm", "sigma_rotation_deg", "residual_rms_px"):
+                    entry[f"{key}_max"] = float(np.max([r[key] for r in runs]))
+                entry["rotation_span_deg_min"] = float(np.min([r["rotation_span_deg"] for r in runs]))
+                entry["seconds_per_run"] = float(np.median([r["seconds"] for r in runs]))
+            per_camera[camera] = entry
+    trans_max = max(e["trans_err_mm_max"] for e in per_camera.values())
+    rot_max = max(e["rot_err_deg_max"] for e in per_camera.values())
+    return {
+        "wrist_trans_err_mm_max": trans_max,
+        "wrist_rot_err_deg_max": rot_max,
+        "wrist_acceptance_met": bool(trans_max <= THRESHOLD_MM and rot_max <= THRESHOLD_DEG),
+        "wrist_source": "sim_rendered" if source == "sim" else "synthetic",
+        "wrist": {
+            "seeds": seeds,
+            "poses": poses,
+            "resolution": resolution if source == "sim" else 1024,
+            "thresholds": {"trans_mm": THRESHOLD_MM, "rot_deg": THRESHOLD_DEG},
+            "cameras": per_camera,
+        },
+    }
+
+
+def wrist_degeneracy_checks() -> dict[str, Any]:
+    """Pure translation and rotations about one axis must be refused, with a message naming the motion to add."""
+    from calib.handeye import DegenerateMotionError
+    from calib.handeye_in_hand import solve_eye_in_hand
+    from calib.rotations import rigid, rotation_exp
+    from calib.sweep import T_BASE_BOARD, T_TCP_CAM
+    from pilworld.geometry import invert_transform
+
+    start = rigid(np.diag([1.0, -1.0, -1.0]), [0.4, 0.1, 0.4])
+    sets = {
+        "pure_translation": [start @ rigid(np.eye(3), [0.04 * k, 0.02 * (k % 2), 0.01 * k]) for k in range(6)],
+        "single_axis": [
+            start @ rigid(rotation_exp([math.radians(a), 0.0, 0.0]), [0.0, 0.01 * k, 0.0])
+            for k, a in enumerate((-30, -15, 0, 10, 25))
+        ],
+    }
+    expected = {
+        "pure_translation": "add rotations about two different axes",
+        "single_axis": "add rotations about a second axis",
+    }
+    out: dict[str, Any] = {}
+    for name, G in sets.items():
+        C = [invert_transform(T_TCP_CAM) @ invert_transform(g) @ T_BASE_BOARD for g in G]
+        try:
+            solve_eye_in_hand(G, C)
+            message, refused = None, False
+        except DegenerateMotionError as exc:
+            message, refused = str(exc), True
+        out[name] = {
+            "refused": refused,
+            "names_the_motion_to_add": bool(message is not None and expected[name] in message),
+            "message": message,
+        }
+    out["all_refused_with_advice"] = all(v["refused"] and v["names_the_motion_to_add"] for v in out.values())
+    return out
+
+
 _STYLE: Final = {"park_martin": "tab:blue", "shah": "tab:orange", "refined": "black"}
 
 
@@ -312,8 +449,16 @@ def run_calibration_bench(
     rig_path: Path = DEFAULT_RIG,
     seed: int = 0,
     progress: bool = True,
+    wrist_seeds: int = 10,
+    wrist_poses: int = 20,
+    wrist_trials: int = 5,
 ) -> dict[str, Any]:
-    """All three parts (see the module docstring); ``quick`` shrinks them to a few seconds for tests."""
+    """All four parts (see the module docstring); ``quick`` shrinks them to a few seconds for tests.
+
+    ``wrist_seeds`` calibrations per wrist camera (``wrist_poses`` poses each); ``wrist_trials`` trials per
+    point of the eye-in-hand sweep. The wrist cameras use the simulated rig unless the hand-eye source
+    is synthetic (``--quick`` or ``--handeye-source synthetic``).
+    """
     for name, value, low in (("--seeds", seeds, 1), ("--views", views, 4), ("--trials", trials, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
@@ -351,5 +496,15 @@ def run_calibration_bench(
         "sweep": sweep["seconds"],
         "total": time.perf_counter() - t_total,
     }
+    t0 = time.perf_counter()
+    wrist_source = "synthetic" if out["handeye_source"] == "synthetic" else "sim"
+    n_wrist = min(wrist_seeds, 2) if quick else wrist_seeds
+    out |= wrist_figures(wrist_source, seeds=n_wrist, poses=wrist_poses, rig_path=rig_path, progress=progress)
+    out["wrist_degenerate"] = wrist_degeneracy_checks()
+    wrist_sweep = run_in_hand_sweep(min(wrist_trials, 2) if quick else wrist_trials, seed=seed).to_dict()
+    out["wrist_sweep"] = wrist_sweep.pop("axes")
+    out["wrist_sweep_settings"] = {**wrist_sweep, "values": {k: list(v) for k, v in IN_HAND_VALUES.items()}}
+    out["seconds"]["wrist"] = time.perf_counter() - t0
+    out["seconds"]["total"] = time.perf_counter() - t_total
     out["machine"] = machine_info()
     return out
