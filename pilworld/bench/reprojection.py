@@ -373,6 +373,10 @@ def _merge(pools: list[_Pool]) -> _Pool:
     return out
 
 
+def _sized(rig: RigConfig, size: int) -> RigConfig:
+    return RigConfig.model_validate({**rig.model_dump(), "image_size": {"width": size, "height": size}})
+
+
 def run_reprojection_bench(
     rig_path: str | Path = DEFAULT_RIG,
     *,
@@ -394,8 +398,7 @@ def run_reprojection_bench(
     size = size if size is not None else (64 if quick else 128)
     if episodes < 1 or subtasks < 1 or size < 16:
         raise ValueError(f"episodes, subtasks must be >= 1 and size >= 16, got {episodes}, {subtasks}, {size}")
-    rig = RigConfig.load(rig_path)
-    rig = RigConfig.model_validate({**rig.model_dump(), "image_size": {"width": size, "height": size}})
+    rig = _sized(RigConfig.load(rig_path), size)
     spec = ChunkSpec()
     clips = collect_clips(
         rig, tasks=tasks, episodes=episodes, subtasks=subtasks, seed0=seed0, spec=spec, progress=progress
@@ -423,6 +426,38 @@ def run_reprojection_bench(
     }
 
 
+_SOURCE_COLOURS = np.array([[0, 0, 0], [60, 170, 60], [70, 110, 230]], dtype=np.uint8)  # none, own, head
+
+
+def example_figure(clips: list[Clip], cameras: RigCameras, path: str | Path, *, rows: int = 6) -> None:
+    """A PNG: per (clip, moving wrist view), current | prior k=1, 8, 15 | sources k=15 | true k=15 | |error| k=15."""
+    prior_fn = SceneReprojector(cameras)
+    wrists = [v for v in cameras.names if cameras.view(v).moves]
+    poses = [(clip, v) for clip in clips for v in wrists]
+    moved = [(c, v) for c, v in poses if _camera_motion(cameras, c, v) > 0.05]
+    lines = []
+    for clip, v in moved[:: max(1, len(moved) // rows)][:rows]:
+        prior = prior_fn(clip.images, clip.state, clip.commands, *clip.robot_masks())
+        last = clip.commands.shape[0] - 1
+        err = np.abs(prior.images[v][last].astype(np.int16) - clip.future_images[v][last]).astype(np.uint8)
+        err[~prior.valid[v][last]] = 0
+        tiles = [clip.images[v], *(prior.images[v][k] for k in (0, 7, last))]
+        tiles += [_SOURCE_COLOURS[prior.source[v][last]], clip.future_images[v][last], err]
+        lines.append(np.concatenate(tiles, axis=1))
+    if not lines:
+        raise ValueError("figure: no clip with a moving wrist camera")
+    image = np.concatenate(lines, axis=0)
+    if not cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
+        raise ValueError(f"figure: cannot write {path}")
+
+
+def _camera_motion(cameras: RigCameras, clip: Clip, view: str) -> float:
+    """Metres the camera centre of ``view`` travels from the current frame to the last future frame."""
+    poses = cameras.poses(np.stack([clip.state, clip.commands[-1]]))[view]
+    centres = -np.einsum("kji,kj->ki", poses[:, :3, :3], poses[:, :3, 3])
+    return float(np.linalg.norm(centres[1] - centres[0]))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m pilworld.bench.reprojection", description=__doc__.split("\n")[0])
     parser.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
@@ -431,8 +466,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--subtasks", type=int, default=None, help="subtasks per run (default 3; quick 1)")
     parser.add_argument("--size", type=int, default=None, help="image size in pixels (default 128; quick 64)")
     parser.add_argument("--json", action="store_true", help="print the JSON object as the last line")
+    parser.add_argument("--figure", type=Path, default=None, help="also write an example PNG (quick clips)")
     args = parser.parse_args(argv)
     try:
+        if args.figure is not None:
+            rig = _sized(RigConfig.load(args.rig), args.size or 128)
+            clips = collect_clips(rig, tasks=DEFAULT_TASKS, episodes=1, subtasks=1)
+            example_figure(clips, RigCameras.from_rig(rig), args.figure)
         result = run_reprojection_bench(
             args.rig, quick=args.quick, episodes=args.episodes, subtasks=args.subtasks, size=args.size, progress=True
         )

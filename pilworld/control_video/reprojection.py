@@ -70,6 +70,7 @@ _METHODS: Final = ("auto", "homography", "remap")
 _PACKED: Final = np.dtype("<u4")  # an RGBA pixel as one little-endian word: alpha is the top byte
 _ALPHA_FULL: Final = np.uint32(_FULL << 24)
 _MIN_MATCH_FRACTION: Final = 0.05  # head/wrist overlap needed to estimate a colour gain
+_MATCH_SAMPLES: Final = 2048  # overlap pixels the colour gain is estimated from (a strided subsample)
 _GAIN_RANGE: Final = (0.5, 2.0)  # a larger correction is a failed estimate, not an exposure difference
 
 U8 = NDArray[np.uint8]
@@ -396,8 +397,8 @@ class SceneReprojector:
     ) -> NDArray[np.uint32]:
         """``head_packed`` scaled per channel to the wrist camera's colours where both see the plane now.
 
-        Two cameras render (or expose) the same table differently; the gain is the ratio of channel sums
-        over the pixels of the *current* wrist frame that the head view also fills.
+        Two cameras render (or expose) the same table differently; the gain is the median ratio, per
+        channel, over the pixels of the *current* wrist frame that the head view also fills.
         """
         head_now, ok = self._warp(rgba[head.name], head, poses_now[head.name], view, poses_now[view.name][None])
         own_now = rgba[view.name]
@@ -405,9 +406,11 @@ class SceneReprojector:
         n = int(ok.sum())
         if n < _MIN_MATCH_FRACTION * ok.size:
             return head_packed
-        head_rgb = head_now.view(np.uint8).reshape(*ok.shape[1:], 4)[ok[0], :3].astype(np.float64)
-        own_rgb = own_now[ok[0], :3].astype(np.float64)
-        gain = np.clip(own_rgb.sum(axis=0) / np.maximum(head_rgb.sum(axis=0), 1.0), *_GAIN_RANGE)
+        step = max(1, n // _MATCH_SAMPLES)
+        head_rgb = head_now.view(np.uint8).reshape(*ok.shape[1:], 4)[ok[0], :3][::step].astype(np.float64)
+        own_rgb = own_now[ok[0], :3][::step].astype(np.float64)
+        # The median ratio: pixels where the plane assumption fails (objects) disagree and are outvoted.
+        gain = np.clip(np.median((own_rgb + 1.0) / (head_rgb + 1.0), axis=0), *_GAIN_RANGE)
         k, h, w = head_packed.shape
         levels = np.arange(256, dtype=np.float64)[:, None]
         lut = np.clip(np.rint(levels * np.array([*gain.tolist(), 1.0])), 0, 255).astype(np.uint8)[None]  # (1, 256, 4)
