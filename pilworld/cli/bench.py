@@ -11,6 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.cli.control_video import parse_size
+from pilworld.control_video.robot_render import BACKENDS
+from pilworld.control_video.styles import STYLES, Style
 from pilworld.types import ChunkSpec
 
 DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
@@ -21,17 +23,52 @@ def register(sub: Any) -> None:
     benches = p.add_subparsers(dest="bench", metavar="NAME")
     benches.required = True
 
-    cv = benches.add_parser("control-video", help="Γ throughput: frames per second in one process")
+    cv = benches.add_parser(
+        "control-video",
+        help="Γ / Γ⁺ speed: marker frames per second, or one Γ⁺ chunk's latency beside the world model's",
+    )
+    cv.add_argument(
+        "--style",
+        default="markers",
+        help=f"control-video style: {', '.join(STYLES)} (default markers, the paper's Γ: throughput bench)",
+    )
+    cv.add_argument("--backend", choices=BACKENDS, default="analytic", help="robot renderer (Γ⁺ styles)")
+    cv.add_argument("--starts", type=int, default=4, help="Γ⁺: held-out simulated starts (default 4)")
+    cv.add_argument("--chunks-per-start", type=int, default=10, help="Γ⁺: random chunks per start (default 10)")
+    cv.add_argument(
+        "--world-model",
+        type=Path,
+        default=None,
+        help="Γ⁺: world-model folder timed in the same run (default: the shipped sim_small); 'none' skips it",
+    )
     cv.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     cv.add_argument("--chunks", type=int, default=4000, help="random chunks per timed pass (default 4000)")
     cv.add_argument("--batch", type=int, default=64, help="chunks per render_batch call (default 64)")
-    cv.add_argument("--size", default="128x128", help="WIDTHxHEIGHT (default 128x128)")
+    cv.add_argument("--size", default=None, help="WIDTHxHEIGHT (default: 128x128 for markers, the rig's for Γ⁺)")
     cv.add_argument("--frames", "-K", type=int, default=15, help="K (default 15)")
     cv.add_argument("--stride", type=int, default=3, help="Δ (default 3)")
     cv.add_argument("--repeats", type=int, default=3, help="timed passes; the best is reported (default 3)")
     cv.add_argument("--seed", type=int, default=0)
     cv.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     cv.set_defaults(handler=_control_video)
+
+    rr = benches.add_parser(
+        "robot-render", help="Γ⁺ robot render vs MuJoCo's segmentation of the full simulated scene: IoU per view"
+    )
+    rr.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    rr.add_argument("--configs-per-arm", type=int, default=200, help="random configurations per arm (default 200)")
+    rr.add_argument("--backend", choices=BACKENDS, default="analytic", help="renderer under test (default analytic)")
+    rr.add_argument("--task", default="sort_cubes", help="task whose scene is the ground truth (default sort_cubes)")
+    rr.add_argument("--out", type=Path, default=None, help="folder for the worst-case diagnostic PNG")
+    rr.add_argument("--seed", type=int, default=0)
+    rr.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    rr.set_defaults(handler=_robot_render)
+
+    rp = benches.add_parser(
+        "reprojection", help="Γ⁺ scene prior vs the frozen frame on held-out clips: PSNR per view at k = 1, 5, 10, 15"
+    )
+    rp.add_argument("rest", nargs=argparse.REMAINDER, help="options of python -m pilworld.bench.reprojection")
+    rp.set_defaults(handler=_reprojection)
 
     dt = benches.add_parser("data", help="episode store write/read frames per second and clip loader rate")
     dt.add_argument("--episodes", type=int, default=6, help="synthetic episodes (default 6)")
@@ -193,11 +230,14 @@ def _control_video(args: argparse.Namespace) -> int:
     from pilworld.bench.control_video import run_control_video_bench
 
     spec = ChunkSpec(horizon=max(50, args.frames * args.stride), frames=args.frames, stride=args.stride)
+    style = Style.parse(args.style)
+    if style.name != "markers":
+        return _gamma_plus(args, style, spec)
     result = run_control_video_bench(
         args.rig,
         chunks=args.chunks,
         batch=args.batch,
-        size=parse_size(args.size),
+        size=parse_size(args.size or "128x128"),
         spec=spec,
         repeats=args.repeats,
         seed=args.seed,
@@ -210,6 +250,64 @@ def _control_video(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result))
     return 0
+
+
+def _gamma_plus(args: argparse.Namespace, style: Style, spec: ChunkSpec) -> int:
+    from pilworld.bench.gamma_plus import SHIPPED_MODEL, run_gamma_plus_bench
+
+    model: Path | None = SHIPPED_MODEL if args.world_model is None else args.world_model
+    if model is not None and str(model).lower() == "none":
+        model = None
+    result = run_gamma_plus_bench(
+        args.rig,
+        style.name,
+        backend=args.backend,
+        starts=args.starts,
+        chunks_per_start=args.chunks_per_start,
+        repeats=args.repeats,
+        world_model=model,
+        size=parse_size(args.size) if args.size else None,
+        spec=spec,
+        seed=args.seed,
+        progress=not args.json,
+    )
+    line = (
+        f"control-video {result['style']}: {result['ms_per_chunk_p50']:.1f} ms per chunk "
+        f"(K={result['K']} × {len(result['views'])} views at {result['image_size'][0]}x{result['image_size'][1]})"
+    )
+    if "world_model" in result:
+        line += (
+            f"; world model {result['world_model']['chunk_latency_ms']:.1f} ms per chunk in the same run "
+            f"(ratio {result['ratio_to_world_model']:.2f})"
+        )
+    print(line)
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def _robot_render(args: argparse.Namespace) -> int:
+    from pilworld.bench.robot_render import run_robot_render_accuracy
+
+    result = run_robot_render_accuracy(
+        args.rig,
+        configs_per_arm=args.configs_per_arm,
+        seed=args.seed,
+        backend=args.backend,
+        task=args.task,
+        out=args.out,
+    )
+    for view, r in result["views"].items():
+        print(f"{view:16s} mean IoU {r['mean_iou']:.4f}  worst {r['worst_iou']:.4f} (config {r['worst_config']})")
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def _reprojection(args: argparse.Namespace) -> int:
+    from pilworld.bench.reprojection import main
+
+    return main(list(args.rest))
 
 
 def _data(args: argparse.Namespace) -> int:

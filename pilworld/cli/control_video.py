@@ -12,6 +12,8 @@ import numpy as np
 from pilworld.cli.arrays import load_npy
 from pilworld.config.rig import RigConfig
 from pilworld.control_video import ControlVideo, ControlVideoStyle
+from pilworld.control_video.robot_render import BACKENDS
+from pilworld.control_video.styles import STYLES, Style
 from pilworld.io.video import write_frames
 from pilworld.types import STATE_DIM, ChunkSpec
 
@@ -46,6 +48,25 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--trace-length", type=int, default=ControlVideoStyle.trace_length, help="trace segments (default 3)"
     )
+    p.add_argument(
+        "--style",
+        default="markers",
+        help=f"what to draw: {', '.join(STYLES)} (default markers: the paper's Γ, head view only; the others draw "
+        "every view side by side, docs/control_video.md)",
+    )
+    p.add_argument("--backend", choices=BACKENDS, default="analytic", help="robot renderer of the render styles")
+    p.add_argument(
+        "--task",
+        help="prior styles on the simulated rig: take the current frames and state from this task's start",
+    )
+    p.add_argument("--seed", type=int, default=1_000_000, help="layout seed of --task's start (default 1000000)")
+    p.add_argument("--subtask", type=int, default=0, help="subtask of --task's start (default 0)")
+    p.add_argument(
+        "--current-images",
+        type=Path,
+        help="prior styles: folder with one PNG per view (cam_high.png, …), the frames the chunk starts from",
+    )
+    p.add_argument("--current-state", type=Path, help=f"prior styles: .npy ({STATE_DIM},), the state at those frames")
     p.add_argument("--fps", type=float, help="video frame rate (default: control rate / stride, i.e. real time)")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
     p.set_defaults(handler=run)
@@ -62,11 +83,14 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    style = Style.parse(args.style)
     rig = RigConfig.load(args.rig)
     if args.size:
         w, h = parse_size(args.size)
         rig = RigConfig.model_validate({**rig.model_dump(), "image_size": {"width": w, "height": h}})
     spec = ChunkSpec(horizon=max(50, args.frames * args.stride), frames=args.frames, stride=args.stride)
+    if style.name != "markers":
+        return _run_gamma_plus(args, rig, spec, style)
     gamma = ControlVideo.from_rig(rig, spec, ControlVideoStyle(trace_length=args.trace_length))
 
     actions = load_npy(args.actions, what="--actions")
@@ -112,6 +136,108 @@ def run(args: argparse.Namespace) -> int:
         f"wrote {out}: {summary['frames']} frames ({summary['rounds']} round(s) × K={args.frames}) at "
         f"{gamma.width}x{gamma.height}; markers drawn {summary['markers_drawn']}/{summary['markers_total']}"
         f" (centre in image: {summary['markers_visible']})"
+    )
+    if args.json:
+        print(json.dumps(summary))
+    return 0
+
+
+def _load_chunks(path: Path, spec: ChunkSpec) -> np.ndarray:
+    actions = load_npy(path, what="--actions")
+    if not (actions.ndim in (2, 3) and actions.shape[-1] == STATE_DIM):
+        raise ValueError(
+            f"--actions: expected shape (H, {STATE_DIM}) or (R, H, {STATE_DIM}), got {actions.shape} from {path}"
+        )
+    if actions.ndim == 2:
+        actions = actions[None]
+    if actions.shape[1] < spec.executed_steps:
+        raise ValueError(
+            f"--actions: chunk has {actions.shape[1]} steps but K·Δ = {spec.frames}·{spec.stride} = "
+            f"{spec.executed_steps} are needed ({path})"
+        )
+    return actions.astype(np.float64)
+
+
+def _current(args: argparse.Namespace, rig: RigConfig) -> tuple[dict[str, np.ndarray] | None, np.ndarray | None]:
+    """The frames and state a chunk starts from: a simulated task start, files, or none."""
+    if args.task is not None and args.current_images is not None:
+        raise ValueError("--task and --current-images: give one source of the current frames, not both")
+    if args.task is not None:
+        from hw_drivers.sim.robot import SimRobot
+
+        with SimRobot(rig, args.task) as sim:
+            sim.reset(seed=args.seed, subtask=args.subtask, history=0)
+            obs = sim.observe()
+        return dict(obs.images), np.asarray(obs.state, dtype=np.float64)
+    state = None
+    if args.current_state is not None:
+        state = load_npy(args.current_state, what="--current-state").reshape(-1).astype(np.float64)
+        if state.shape != (STATE_DIM,):
+            raise ValueError(f"--current-state: expected {STATE_DIM} values, got shape {state.shape}")
+    if args.current_images is None:
+        return None, state
+    import cv2
+
+    images = {}
+    for view in rig.cameras:
+        path = args.current_images / f"{view}.png"
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(
+                f"--current-images: {path} is missing or not an image (one PNG per view: {list(rig.cameras)})"
+            )
+        want = (rig.image_size.height, rig.image_size.width)
+        if img.shape[:2] != want:
+            raise ValueError(
+                f"--current-images: {path} is {img.shape[1]}x{img.shape[0]}, the rig's views are {want[1]}x{want[0]}"
+            )
+        images[view] = np.ascontiguousarray(img[..., ::-1])
+    return images, state
+
+
+def _run_gamma_plus(args: argparse.Namespace, rig: RigConfig, spec: ChunkSpec, style: Style) -> int:
+    """Γ⁺ styles: every view of every frame side by side, rounds chained as for Γ."""
+    from pilworld.control_video.gamma_plus import GammaPlus
+
+    actions = _load_chunks(args.actions, spec)
+    images, state = _current(args, rig)
+    previous = None
+    if args.previous_state is not None:
+        previous = load_npy(args.previous_state, what="--previous-state").reshape(-1).astype(np.float64)
+        if previous.shape != (STATE_DIM,):
+            raise ValueError(f"--previous-state: expected {STATE_DIM} values, got shape {previous.shape}")
+    if previous is None:
+        previous = state
+    if style.prior and (images is None or (state is None and previous is None)):
+        raise ValueError(
+            f"--style {style.name}: the prior warps the current frames; give --task T (simulated rig) or "
+            "--current-images DIR with --current-state FILE.npy"
+        )
+    gamma = GammaPlus(rig, style, spec=spec, backend=args.backend)
+    parts = []
+    start = state if state is not None else previous
+    for r, chunk in enumerate(actions):
+        out = gamma(chunk, previous_state=previous, current_images=images if r == 0 else None, current_state=start)
+        parts.append(np.concatenate([out.images[v] for v in out.views], axis=2))  # views side by side
+        if style.prior:
+            break  # the prior needs the frames at each round's start: only the first round has them
+        previous = start = gamma.markers.stride_aligned(chunk)[-1]
+    video = np.concatenate(parts)
+    fps = args.fps if args.fps is not None else rig.control_rate_hz / args.stride
+    out_path = write_frames(video, args.out, fps=fps, columns=min(args.frames, 5))
+    summary = {
+        "out": str(out_path),
+        "style": style.name,
+        "rounds": len(parts),
+        "frames": int(video.shape[0]),
+        "views": list(gamma.views),
+        "image_size": [rig.image_size.width, rig.image_size.height],
+        "fps": fps,
+    }
+    note = " (prior styles draw the first round only)" if style.prior and actions.shape[0] > 1 else ""
+    print(
+        f"wrote {out_path}: {style.name}, {summary['frames']} frames × {len(gamma.views)} views "
+        f"({', '.join(gamma.views)}) at {rig.image_size.width}x{rig.image_size.height}{note}"
     )
     if args.json:
         print(json.dumps(summary))

@@ -15,14 +15,15 @@ simulated rig is built from (:mod:`pilworld.control_video.robot_model`). Two bac
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pilworld.config.rig import RigConfig
-from pilworld.control_video.cameras import RigCameras
-from pilworld.control_video.robot_model import PART_NAMES, RobotModel
+if TYPE_CHECKING:  # MuJoCo loads with the robot model; the CLI imports this module for BACKENDS only
+    from pilworld.config.rig import RigConfig
+    from pilworld.control_video.cameras import RigCameras
+    from pilworld.control_video.robot_model import RobotModel
 
 Backend = Literal["analytic", "mujoco"]
 BACKENDS: tuple[Backend, ...] = ("analytic", "mujoco")
@@ -53,7 +54,9 @@ class RobotRender:
 
     @staticmethod
     def part_names() -> tuple[str, ...]:
-        return PART_NAMES
+        from pilworld.control_video.robot_model import PART_NAMES
+
+        return tuple(PART_NAMES)
 
 
 class RobotRendererBackend(Protocol):
@@ -73,6 +76,9 @@ def make_robot_renderer(
     cameras: RigCameras | None = None,
 ) -> RobotRendererBackend:
     """A renderer of ``rig``'s robot in all its cameras; ``robot``/``cameras`` override (stability probes)."""
+    from pilworld.control_video.cameras import RigCameras
+    from pilworld.control_video.robot_model import RobotModel
+
     robot = robot or RobotModel.from_rig(rig)
     cameras = cameras or RigCameras.from_rig(rig)
     if backend == "analytic":
