@@ -127,7 +127,7 @@ def test_prior_styles_show_the_prior_where_nothing_else_is_drawn(
         unmarked: np.ndarray[Any, Any] = np.ones_like(robot)
         if s.markers and view == HEAD_VIEW:
             assert f.markers is not None
-            unmarked = ~f.markers.any(axis=-1)
+            unmarked = np.asarray(~f.markers.any(axis=-1))
         free = unmarked & ~robot if s.render else unmarked
         np.testing.assert_array_equal(f.images[view][free], f.prior.images[view][free])
         if s.render:  # the shaded robot over the prior, the markers over both
