@@ -154,9 +154,9 @@ class GammaPlus:
             if render is not None:
                 assert render.shaded is not None
                 robot = render.parts[view.name] > 0
-                img[robot] = render.shaded[view.name][robot]
+                np.copyto(img, render.shaded[view.name], where=robot[..., None])
             if markers is not None and view.name == HEAD_VIEW:
-                drawn = np.any(markers > 0, axis=-1)
-                img[drawn] = markers[drawn]
+                drawn = (markers[..., 0] | markers[..., 1] | markers[..., 2]) > 0
+                np.copyto(img, markers, where=drawn[..., None])
             out[view.name] = img
         return out

@@ -127,6 +127,26 @@ def _view_grid(camera: CameraModel, ss: int, max_scale: float = 3.0) -> _ViewGri
     return _ViewGrid(K, cw, ch, grid_rays, planes, remap, (w, h), ss)
 
 
+def _clip_to_box(poly: NDArray[Any], box: tuple[float, float, float, float]) -> NDArray[np.float64]:
+    """Sutherland–Hodgman: a convex polygon (M, 2) clipped to the box (x0, y0, x1, y1)."""
+    pts = np.asarray(poly, dtype=np.float64)
+    for axis, bound, keep_less in ((0, box[0], False), (0, box[2], True), (1, box[1], False), (1, box[3], True)):
+        if len(pts) == 0:
+            break
+        side = pts[:, axis] - bound
+        inside = side <= 0 if keep_less else side >= 0
+        nxt = np.roll(np.arange(len(pts)), -1)
+        out = []
+        for i, j in zip(range(len(pts)), nxt, strict=True):
+            if inside[i]:
+                out.append(pts[i])
+            if inside[i] != inside[j]:
+                a, b = pts[i], pts[j]
+                out.append(a + (b - a) * (side[i] / (side[i] - side[j])))
+        pts = np.asarray(out).reshape(-1, 2)
+    return pts
+
+
 def _basis(n: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Two unit vectors orthogonal to unit vectors ``n`` (..., 3) and to each other."""
     helper = np.where(np.abs(n[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
@@ -151,6 +171,10 @@ class AnalyticRobotRenderer:
         self.types = types
         self.size = robot.geom_size
         self.part_lut = np.concatenate([[0], robot.geom_part]).astype(np.uint8)
+        if len(self.part_lut) > 256:
+            raise ValueError(f"robot model {robot.source}: {len(types)} geoms, the renderer draws at most 255")
+        self.part_lut256 = np.zeros(256, dtype=np.uint8)
+        self.part_lut256[: len(self.part_lut)] = self.part_lut
         self.rgb255 = (np.clip(robot.geom_rgba[:, :3], 0.0, 1.0) * 255.0).astype(np.float32)
         self.size32 = self.size.astype(np.float32)
         lut = np.zeros((3, 256), dtype=np.uint8)  # geom index + 1 → its colour, per channel
@@ -167,6 +191,17 @@ class AnalyticRobotRenderer:
         self._mesh_pts = self._mesh_points(robot)
         self._local = self._local_points()
         self.bound = self._bounding_radii()
+        is_round = np.isin(types, (SPHERE, CAPSULE))
+        self._round_idx = np.flatnonzero(is_round)
+        self._flat_idx = np.flatnonzero(~is_round)
+        self._round_half = np.where(types[is_round] == CAPSULE, self.size[is_round, 1], 0.0)
+        # Per flat geom, the local extents its points are scaled against when shrinking (x, y, z).
+        ext = self.size[~is_round].copy()
+        cyl = types[~is_round] == CYLINDER
+        ext[cyl] = np.stack([ext[cyl, 0], ext[cyl, 0], ext[cyl, 1]], axis=-1)
+        mesh = types[~is_round] == MESH
+        ext[mesh] = np.inf  # a mesh's points are its vertices; it is not shrunk
+        self._flat_extent = np.maximum(ext, 1e-9)
 
     # ------------------------------------------------------------------ geometry
 
@@ -226,29 +261,33 @@ class AnalyticRobotRenderer:
         """(N, G, S, 3) generating points in the camera frame; ``shrink`` (N, G) metres off each surface."""
         N, G = Pc.shape[:2]
         S = self._local.shape[1]
-        local = np.broadcast_to(self._local, (N, G, S, 3)).copy()
-        t = self.types
-        # Half a pixel inwards (see the module docstring): boxes lose it on every half-size, cylinders on
-        # radius and half-length (the scale keeps the points on the shrunk surface).
-        for kind in (BOX, CYLINDER, ELLIPSOID):
-            sel = t == kind
-            if np.any(sel):
-                s = self.size[sel]  # (g, 3)
-                if kind == CYLINDER:
-                    s = np.stack([s[:, 0], s[:, 0], s[:, 1]], axis=-1)
-                factor = np.clip(1.0 - shrink[:, sel, None] / np.maximum(s[None], 1e-9), 0.2, 1.0)  # (N, g, 3)
-                local[:, sel] *= factor[:, :, None, :]
-        pts: NDArray[np.float64] = Pc[:, :, None, :] + np.einsum("ngij,ngsj->ngsi", Rc, local)
-        round_ = np.isin(t, (SPHERE, CAPSULE))
-        if np.any(round_):
+        pts = np.empty((N, G, S, 3))
+        flat, round_ = self._flat_idx, self._round_idx
+        if flat.size:
+            # Half a pixel inwards (see the module docstring): boxes lose it on every half-size, cylinders
+            # on radius and half-length (the scale keeps the points on the shrunk surface).
+            factor = np.clip(1.0 - shrink[:, flat, None] / self._flat_extent[None], 0.2, 1.0)  # (N, f, 3)
+            local = self._local[flat][None] * factor[:, :, None, :]  # (N, f, S, 3)
+            R = Rc[:, flat]  # (N, f, 3, 3)
+            c = Pc[:, flat]
+            world = np.empty_like(local)
+            for k in range(3):
+                world[..., k] = (
+                    c[:, :, None, k]
+                    + R[:, :, None, k, 0] * local[..., 0]
+                    + R[:, :, None, k, 1] * local[..., 1]
+                    + R[:, :, None, k, 2] * local[..., 2]
+                )
+            pts[:, flat] = world
+        if round_.size:
             r = np.maximum(self.size[round_, 0][None] - shrink[:, round_], 1e-6)  # (N, g)
-            half = np.where(t[round_] == CAPSULE, self.size[round_, 1], 0.0)
+            half = self._round_half[None, :, None]
             axis = Rc[:, round_][..., 2]  # (N, g, 3)
-            ends = [Pc[:, round_] + half[None, :, None] * axis, Pc[:, round_] - half[None, :, None] * axis]
-            rings = [self._silhouette(c, r) for c in ends]  # each (N, g, C, 3)
-            ring_pts = np.concatenate(rings, axis=2)
-            pts[:, round_, : ring_pts.shape[2]] = ring_pts
-            pts[:, round_, ring_pts.shape[2] :] = ring_pts[:, :, :1]
+            c = Pc[:, round_]
+            ring_pts = np.concatenate([self._silhouette(c + half * axis, r), self._silhouette(c - half * axis, r)], 2)
+            C = ring_pts.shape[2]
+            pts[:, round_, :C] = ring_pts
+            pts[:, round_, C:] = ring_pts[:, :, :1]
         return pts
 
     @staticmethod
@@ -324,7 +363,7 @@ class AnalyticRobotRenderer:
             Rc = R[:, None] @ rot
             grid = self.grids[view.name]
             ids = self._draw(Pc, Rc, grid)  # (N, H_c, W_c) geom index + 1
-            out_parts = self.part_lut[ids]
+            out_parts: NDArray[np.uint8] = np.asarray(cv2.LUT(ids, self.part_lut256), dtype=np.uint8)
             if depth or shaded:
                 z, shade = self._cast(ids, Pc, Rc, grid)
             if grid.remap is not None:
@@ -368,43 +407,60 @@ class AnalyticRobotRenderer:
         ok = front & inside & (u.max(-1) > -1) & (u.min(-1) < W) & (v.max(-1) > -1) & (v.min(-1) < H)
         crossing = inside & ~front & ~self._contains_camera(Pc, Rc)
         uv = np.stack([u, v], axis=-1)
-        lim = 8.0 * max(W, H)  # keep fixed-point coordinates far from int32 overflow
+        # Polygons reaching far beyond the canvas (a geom beside a wrist camera) are clipped to it exactly
+        # (clamping their vertices would bend their edges); the rest go straight to fixed point.
+        lim = 4.0 * max(W, H)
+        far = np.any(np.abs(uv) > lim, axis=(-1, -2))
         fixed = np.rint(np.clip(uv, -lim, lim) * _ONE).astype(np.int32)  # (N, G, S, 2)
+        box = (-2.0, -2.0, W + 1.0, H + 1.0)
         order = np.argsort(-np.linalg.norm(Pc, axis=-1), axis=1)  # far to near, per frame
         ids = np.zeros((N, H, W), dtype=np.uint8)
         hull, fill = cv2.convexHull, cv2.fillConvexPoly
+        cut: list[list[tuple[int, NDArray[np.int32]]]] = [[] for _ in range(N)]  # near-plane-cut geoms per frame
         for n in range(N):
             img = ids[n]
             ok_n, cross_n = ok[n], crossing[n]
             for g in order[n].tolist():
                 if ok_n[g]:
-                    fill(img, hull(fixed[n, g]), g + 1, cv2.LINE_8, _SHIFT)
+                    if far[n, g]:
+                        poly = _clip_to_box(np.asarray(cv2.convexHull(uv[n, g].astype(np.float32)))[:, 0], box)
+                        if len(poly) >= 3:
+                            fill(img, np.rint(poly * _ONE).astype(np.int32), g + 1, cv2.LINE_8, _SHIFT)
+                    else:
+                        fill(img, hull(fixed[n, g]), g + 1, cv2.LINE_8, _SHIFT)
                 elif cross_n[g]:
                     cp = self._near_clipped(g, Pc[n, g], Rc[n, g])
                     if cp is None:
                         continue
                     cu = K[0, 0] * cp[:, 0] / cp[:, 2] + K[0, 1] * cp[:, 1] / cp[:, 2] + K[0, 2]
                     cv_ = K[1, 1] * cp[:, 1] / cp[:, 2] + K[1, 2]
-                    cpts = np.rint(np.clip(np.stack([cu, cv_], -1), -lim, lim) * _ONE).astype(np.int32)
-                    fill(img, hull(cpts), g + 1, cv2.LINE_8, _SHIFT)
+                    flat_pts = np.stack([cu, cv_], -1).astype(np.float32)
+                    poly = _clip_to_box(np.asarray(cv2.convexHull(flat_pts))[:, 0], box)
+                    if len(poly) >= 3:
+                        cut[n].append((g, np.rint(poly * _ONE).astype(np.int32)))
         o = (ss - 1) // 2
-        return np.ascontiguousarray(ids[:, o::ss, o::ss]) if ss > 1 else ids
+        out = np.ascontiguousarray(ids[:, o::ss, o::ss]) if ss > 1 else ids
+        if any(cut):
+            self._composite_cut(out, cut, Pc, Rc, grid)
+        return out
 
     # ------------------------------------------------------------------ depth and shading
 
-    def _cast(
-        self, ids: NDArray[np.uint8], Pc: NDArray[np.float64], Rc: NDArray[np.float64], grid: _ViewGrid
-    ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
-        """Depth Z (N, H, W) and shaded RGB (N, H, W, 3) at the robot's pixels."""
-        N, H, W = ids.shape
-        z_img = np.zeros((N, H, W), dtype=np.float32)
-        shade_img = np.zeros((N, H, W, 3), dtype=np.uint8)
-        flat = ids.reshape(-1)
-        pix = np.flatnonzero(flat)
-        if pix.size == 0:
-            return z_img, shade_img
+    def _intersect(
+        self,
+        pix: NDArray[np.int64],
+        g: NDArray[np.int64],
+        Pc: NDArray[np.float64],
+        Rc: NDArray[np.float64],
+        grid: _ViewGrid,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], tuple[Any, ...], tuple[Any, ...], NDArray[np.int64]]:
+        """Rays of flat pixel indices ``pix`` of (N, H, W) against geoms ``g`` (one per pixel).
+
+        Returns the pixels and geoms regrouped by primitive kind, ``(t, nx, ny, nz)`` (t = depth Z, inf
+        where the ray misses), the ray directions ``e`` in the geom frames and the (frame·G + geom) index.
+        """
+        H, W = grid.height, grid.width
         G = Pc.shape[1]
-        g = flat[pix].astype(np.int64) - 1
         # Pixels grouped by primitive kind, so each kind's rays are one contiguous slice below.
         perm = np.argsort(self.types[g], kind="stable")
         pix, g = pix[perm], g[perm]
@@ -421,8 +477,6 @@ class AnalyticRobotRenderer:
         R_ng = Rf.reshape(-1, 9).T.astype(np.float32)  # (9, N·G), row 3j + k = R[j, k]
         o = (o_ng[0][ng], o_ng[1][ng], o_ng[2][ng])
         e = tuple(R_ng[k][ng] * dx + R_ng[3 + k][ng] * dy + R_ng[6 + k][ng] for k in range(3))
-        cz = cf[:, 2].astype(np.float32)
-        c_ng = cf.T.astype(np.float32)
         s0, s1, s2 = (self.size32[:, k][g] for k in range(3))
         kinds = self.types[g]
         t = np.full(g.shape, np.inf, dtype=np.float32)
@@ -452,6 +506,76 @@ class AnalyticRobotRenderer:
                 )
                 hit = (th[0], th[1] / sc[0], th[2] / sc[1], th[3] / sc[2])
             t[sel], nx[sel], ny[sel], nz[sel] = hit
+        return pix, g, (t, nx, ny, nz), e, ng
+
+    def _composite_cut(
+        self,
+        ids: NDArray[np.uint8],
+        cut: list[list[tuple[int, NDArray[np.int32]]]],
+        Pc: NDArray[np.float64],
+        Rc: NDArray[np.float64],
+        grid: _ViewGrid,
+    ) -> None:
+        """Add the geoms the near plane cuts, z-tested per pixel against what is drawn (``ids`` at 1×).
+
+        MuJoCo (OpenGL) clips at the near plane and culls back faces, so where a geom's front surface is
+        cut away one sees through it, not into it: a pixel shows the geom only where its ray enters the
+        geom beyond the near plane. The polygon of the clipped volume (``cut``, fixed point on the ss×
+        canvas) is a superset of those pixels; each is ray cast, and wins where it is nearer than the
+        geom already there. Frames are batched: round r takes the r-th cut geom of every frame.
+        """
+        N, H, W = ids.shape
+        ss, o = grid.ss, (grid.ss - 1) // 2
+        scratch = np.zeros((H * ss, W * ss), dtype=np.uint8)
+        for r in range(max(len(c) for c in cut)):
+            pix_l, g_l = [], []
+            for n in range(N):
+                if r < len(cut[n]):
+                    geom, poly = cut[n][r]
+                    scratch.fill(0)
+                    cv2.fillConvexPoly(scratch, poly, 1, cv2.LINE_8, _SHIFT)
+                    yx = np.flatnonzero(scratch[o::ss, o::ss])
+                    pix_l.append(n * H * W + yx)
+                    g_l.append(np.full(yx.size, geom, dtype=np.int64))
+            pix = np.concatenate(pix_l)
+            if pix.size == 0:
+                continue
+            pix, g, (t, *_), _, _ = self._intersect(pix, np.concatenate(g_l), Pc, Rc, grid)
+            seen = t >= self.near  # inf (a miss) never wins below
+            keep = seen & np.isfinite(t)
+            pix, g, t = pix[keep], g[keep], t[keep]
+            flat = ids.reshape(-1)
+            other = flat[pix].astype(np.int64) - 1
+            win = other < 0
+            drawn = np.flatnonzero(~win)
+            if drawn.size:
+                p2, _, (t2, *_), _, _ = self._intersect(pix[drawn], other[drawn], Pc, Rc, grid)
+                t_other = np.full(pix.size, np.inf, dtype=np.float32)
+                order = np.argsort(pix[drawn])
+                # _intersect regroups its inputs; map its results back to drawn's order through the pixel ids.
+                t_other[drawn[order]] = t2[np.argsort(p2)]
+                win |= t < t_other
+            flat[pix[win]] = (g[win] + 1).astype(np.uint8)
+
+    def _cast(
+        self, ids: NDArray[np.uint8], Pc: NDArray[np.float64], Rc: NDArray[np.float64], grid: _ViewGrid
+    ) -> tuple[NDArray[np.float32], NDArray[np.uint8]]:
+        """Depth Z (N, H, W) and shaded RGB (N, H, W, 3) at the robot's pixels."""
+        N, H, W = ids.shape
+        z_img = np.zeros((N, H, W), dtype=np.float32)
+        shade_img = np.zeros((N, H, W, 3), dtype=np.uint8)
+        flat = ids.reshape(-1)
+        pix = np.flatnonzero(flat)
+        if pix.size == 0:
+            return z_img, shade_img
+        g = flat[pix].astype(np.int64) - 1
+        pix, g, (t, nx, ny, nz), e, ng = self._intersect(pix, g, Pc, Rc, grid)
+        rays = grid.rays32.reshape(-1, 3)
+        yx = pix % (H * W)
+        dx, dy = rays[yx, 0], rays[yx, 1]
+        cf = Pc.reshape(-1, 3)
+        cz = cf[:, 2].astype(np.float32)
+        c_ng = cf.T.astype(np.float32)
         miss = np.flatnonzero(~np.isfinite(t))
         if miss.size:
             # Polygon-edge pixels whose ray grazes past the geom: the ray's closest approach to its centre.
