@@ -5,8 +5,8 @@ from :data:`~pilworld.bench.world_model.HELDOUT_SEED0` = 1,000,000 on; the best 
 one alternate by seed), the first ``subtasks`` subtasks of each run back to back, every round one clip:
 the current frame of every view, the K stride-aligned commands the policy sent (what Γ⁺ is given), the
 measured joint states and the true frames at stride Δ. Every frame is also rendered through MuJoCo's
-segmentation (robot, table, floor beyond the table, objects and fixtures), which stands in for the robot
-renderer's masks until ``control_video.robot_render`` lands.
+segmentation (robot, table, floor beyond the table, objects and fixtures). The robot pixels the prior
+removes come from the analytic robot render, as Γ⁺ computes them (``--masks segmentation``: the true ones).
 
 **Scores.** For frames k = 1 … K, pooled over clips: PSNR = 10 log₁₀(255² / MSE) of the prior against the
 true frame over the prior's valid pixels, the frozen frame (the current frame copied) on the SAME pixels,
@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from pilworld.bench.common import machine_info
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.cameras import RigCameras
+from pilworld.control_video.lag import estimate_lag, lagged_poses
 from pilworld.control_video.reprojection import SOURCE_HEAD, SOURCE_OWN, ReprojectionPrior, SceneReprojector
 from pilworld.types import HEAD_VIEW, ChunkSpec, Subtask
 
@@ -60,6 +61,7 @@ class Clip:
     labels: dict[str, NDArray[np.uint8]]  # view → (H, W) segmentation label of the current frame
     state: NDArray[np.float64]  # (14,) measured joints at the current frame
     commands: NDArray[np.float64]  # (K, 14) stride-aligned commands sent
+    executed: NDArray[np.float64]  # (KΔ, 14) every command sent in the round
     future_states: NDArray[np.float64]  # (K, 14) measured joints at the future frames
     future_images: dict[str, NDArray[np.uint8]]  # view → (K, H, W, 3)
     future_labels: dict[str, NDArray[np.uint8]]  # view → (K, H, W)
@@ -169,9 +171,10 @@ def _run(
         robot.subtask = Subtask(task, k, robot.task.instruction, seed)
         for _ in range(spec.rounds):
             chunk = np.asarray(policy.infer(obs, robot.task.instruction), dtype=np.float64)
-            commands, states, frames, frame_labels = [], [], [], []
+            commands, states, frames, frame_labels, executed = [], [], [], [], []
             for step, action in enumerate(chunk[: spec.executed_steps]):
                 sent = robot.send_action(action)
+                executed.append(np.asarray(sent, dtype=np.float64))
                 if (step + 1) % spec.stride == 0:
                     o = robot.observe()
                     commands.append(np.asarray(sent, dtype=np.float64))
@@ -187,6 +190,7 @@ def _run(
                     labels=labels,
                     state=np.asarray(obs.state, dtype=np.float64),
                     commands=np.stack(commands),
+                    executed=np.stack(executed),
                     future_states=np.stack(states),
                     future_images={v: np.stack([f.images[v] for f in frames]) for v in views},
                     future_labels={v: np.stack([fl[v] for fl in frame_labels]) for v in views},
@@ -266,8 +270,32 @@ def _round(x: float, digits: int = 2) -> float:
     return round(float(x), digits)
 
 
-def score_clips(clips: list[Clip], cameras: RigCameras, *, timing_repeats: int = 3) -> dict[str, Any]:
-    """Score the prior on ``clips`` (see the module docstring); also times one prior per clip."""
+MASK_SOURCES = ("render", "segmentation")
+
+
+def _render_masks(
+    renderer: Any, clip: Clip, poses: NDArray[np.float64]
+) -> tuple[dict[str, NDArray[np.bool_]], dict[str, NDArray[np.bool_]]]:
+    """The robot masks Γ⁺ itself uses: the analytic render of the current state and of the K poses."""
+    out = renderer.render(np.concatenate([clip.state[None], poses]), depth=False, shaded=False)
+    return {v: p[0] > 0 for v, p in out.parts.items()}, {v: p[1:] > 0 for v, p in out.parts.items()}
+
+
+def score_clips(
+    clips: list[Clip],
+    cameras: RigCameras,
+    *,
+    timing_repeats: int = 3,
+    renderer: Any = None,
+    lag_steps: float = 0.0,
+) -> dict[str, Any]:
+    """Score the prior on ``clips`` (see the module docstring); also times one prior per clip.
+
+    ``renderer`` (a robot renderer of the same rig) gives the robot masks as Γ⁺ computes them; None
+    uses the simulator's segmentation of the robot (the true masks). The future poses are the commands
+    delayed by ``lag_steps`` control steps, as Γ⁺ places them (:mod:`pilworld.control_video.lag`).
+    """
+    spec = ChunkSpec()
     prior_fn = SceneReprojector(cameras)
     label_fn = SceneReprojector(cameras, interpolation="nearest")
     plain_fn = SceneReprojector(cameras, match_head_colour=False)
@@ -283,17 +311,18 @@ def score_clips(clips: list[Clip], cameras: RigCameras, *, timing_repeats: int =
     moving = {v: 0 for v in wrists}
     times: list[float] = []
     for clip in clips:
-        now_masks, future_masks = clip.robot_masks()
+        poses = lagged_poses(clip.executed, clip.state, spec, lag_steps)
+        now_masks, future_masks = clip.robot_masks() if renderer is None else _render_masks(renderer, clip, poses)
         best = float("inf")
         for _ in range(timing_repeats):
             t0 = time.perf_counter()
-            prior = prior_fn(clip.images, clip.state, clip.commands, now_masks, future_masks)
+            prior = prior_fn(clip.images, clip.state, poses, now_masks, future_masks)
             best = min(best, time.perf_counter() - t0)
         times.append(best)
         from_state = prior_fn(clip.images, clip.state, clip.future_states, now_masks, future_masks)
-        unmatched = plain_fn(clip.images, clip.state, clip.commands, now_masks, future_masks)
+        unmatched = plain_fn(clip.images, clip.state, poses, now_masks, future_masks)
         label_images = {v: np.repeat(clip.labels[v][..., None], 3, axis=2) for v in views}
-        warped_labels = label_fn(label_images, clip.state, clip.commands, now_masks, future_masks)
+        warped_labels = label_fn(label_images, clip.state, poses, now_masks, future_masks)
         for v in views:
             valid = prior.valid[v]
             true = clip.future_images[v]
@@ -386,9 +415,16 @@ def run_reprojection_bench(
     subtasks: int | None = None,
     size: int | None = None,
     seed0: int = 1_000_000,
+    masks: str = "render",
     progress: bool = False,
 ) -> dict[str, Any]:
-    """Collect held-out clips and score the prior; ``quick``: one task, one run, 64×64 (for tests)."""
+    """Collect held-out clips and score the prior; ``quick``: one task, one run, 64×64 (for tests).
+
+    ``masks``: ``render`` — the robot's pixels from the analytic robot render of the current state and
+    of the commands, as Γ⁺ computes them; ``segmentation`` — the simulator's true robot pixels.
+    """
+    if masks not in MASK_SOURCES:
+        raise ValueError(f"masks: expected one of {', '.join(MASK_SOURCES)}, got {masks!r}")
     cv2.setNumThreads(1)  # the figure one rollout worker gets
     t0 = time.perf_counter()
     if quick:
@@ -404,7 +440,22 @@ def run_reprojection_bench(
         rig, tasks=tasks, episodes=episodes, subtasks=subtasks, seed0=seed0, spec=spec, progress=progress
     )
     t_collect = time.perf_counter() - t0
-    scores = score_clips(clips, RigCameras.from_rig(rig))
+    cameras = RigCameras.from_rig(rig)
+    renderer = None
+    if masks == "render":
+        from pilworld.control_video.robot_render import make_robot_renderer
+
+        renderer = make_robot_renderer(rig, "analytic", cameras=cameras)
+    lag = estimate_lag(
+        np.stack([c.executed for c in clips]),
+        np.stack([c.state for c in clips]),
+        np.stack([c.future_states for c in clips]),
+        spec,
+    )
+    scores = score_clips(clips, cameras, renderer=renderer, lag_steps=rig.control_lag_steps)
+    if rig.control_lag_steps > 0:
+        without = score_clips(clips, cameras, renderer=renderer, timing_repeats=1)
+        scores["wrists_without_lag"] = without["wrists_pooled"]
     return {
         "benchmark": "reprojection",
         **scores,
@@ -417,8 +468,15 @@ def run_reprojection_bench(
         "K": spec.frames,
         "stride": spec.stride,
         "head_view": HEAD_VIEW,
-        "masks": "MuJoCo segmentation of the robot geoms (stand-in for control_video.robot_render)",
-        "future_pose": "stride-aligned commands (what Γ⁺ is given); see wrists_from_measured_state",
+        "masks": {
+            "render": "analytic robot render of the current state and the commands (what Γ⁺ uses)",
+            "segmentation": "MuJoCo segmentation of the robot geoms (the true robot pixels)",
+        }[masks],
+        "future_pose": (
+            f"commands delayed by the rig's control_lag_steps = {rig.control_lag_steps:g} (as Γ⁺ places the arm); "
+            "wrists_without_lag: the stride-aligned commands; wrists_from_measured_state: the measured joints"
+        ),
+        "lag_estimate": lag,
         "collect_seconds": _round(t_collect),
         "seconds": _round(time.perf_counter() - t0),
         "rig": rig.name,
@@ -467,6 +525,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", type=int, default=None, help="image size in pixels (default 128; quick 64)")
     parser.add_argument("--json", action="store_true", help="print the JSON object as the last line")
     parser.add_argument("--figure", type=Path, default=None, help="also write an example PNG (quick clips)")
+    parser.add_argument(
+        "--masks",
+        choices=MASK_SOURCES,
+        default="render",
+        help="robot pixels from the analytic render as Γ⁺ computes them (default) or the simulator's segmentation",
+    )
     args = parser.parse_args(argv)
     try:
         if args.figure is not None:
@@ -474,7 +538,13 @@ def main(argv: list[str] | None = None) -> int:
             clips = collect_clips(rig, tasks=DEFAULT_TASKS, episodes=1, subtasks=1)
             example_figure(clips, RigCameras.from_rig(rig), args.figure)
         result = run_reprojection_bench(
-            args.rig, quick=args.quick, episodes=args.episodes, subtasks=args.subtasks, size=args.size, progress=True
+            args.rig,
+            quick=args.quick,
+            episodes=args.episodes,
+            subtasks=args.subtasks,
+            size=args.size,
+            masks=args.masks,
+            progress=True,
         )
     except ValueError as exc:
         print(f"bench reprojection: error: {exc}", file=sys.stderr)

@@ -178,6 +178,9 @@ class RigConfig(StrictModel):
     name: str = Field(min_length=1)
     control_rate_hz: float = Field(default=30.0, gt=0, le=1000)  # policy/control steps per second
     servo_rate_hz: float = Field(default=500.0, gt=0)  # arm controller interpolation rate underneath
+    # Control steps the measured joints trail the commanded ones (servo tracking): Γ⁺'s render and prior place
+    # the arm there (pilworld/control_video/lag.py; `pilworld bench reprojection` estimates it from rounds).
+    control_lag_steps: float = Field(default=0.0, ge=0.0, le=45.0)
     image_size: ImageSize = ImageSize(width=128, height=128)  # every camera, as the policy sees it
     arms: Arms
     head_camera: HeadCameraConfig

@@ -71,13 +71,33 @@ def random_chunks(
     return chunks.astype(np.float32)
 
 
+def starting_at(chunk: NDArray[np.floating], state: NDArray[np.floating]) -> NDArray[np.float32]:
+    """``chunk`` (H, 14) bent to begin at ``state``: the offset of its first row fades out linearly.
+
+    A chunk written for one start pose then continues from another one smoothly, as a policy's would.
+    """
+    c = np.asarray(chunk, dtype=np.float64)
+    lead = np.linspace(1.0, 0.0, c.shape[0])[:, None]
+    return (c + (np.asarray(state, dtype=np.float64)[None] - c[:1]) * lead).astype(np.float32)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Write the example reach-and-grasp chunk as .npy")
     parser.add_argument("out", type=Path)
     parser.add_argument("--horizon", type=int, default=50)
+    parser.add_argument(
+        "--from-sim-start",
+        action="store_true",
+        help="begin at the simulated rig's start pose (where every simulated subtask starts)",
+    )
     args = parser.parse_args(argv)
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    np.save(args.out, reach_and_grasp_chunk(args.horizon))
+    chunk = reach_and_grasp_chunk(args.horizon)
+    if args.from_sim_start:
+        from hw_drivers.sim.poses import HOME_Q14 as SIM_START
+
+        chunk = starting_at(chunk, SIM_START)
+    np.save(args.out, chunk)
     print(f"wrote {args.out}")
     return 0
 

@@ -3,7 +3,9 @@ the scene reprojected into moving cameras — in the combination a style names.
 
 ``GammaPlus.from_rig(rig, style)(chunk, current_images=…, current_state=…) -> ControlFrames``:
 
-1. the chunk's K stride-aligned actions (rows Δ−1, 2Δ−1, …, KΔ−1), validated as Γ validates them;
+1. the chunk's K stride-aligned actions (rows Δ−1, 2Δ−1, …, KΔ−1), validated as Γ validates them; the
+   render and the prior use them delayed by the rig's servo lag (``control_lag_steps``,
+   :mod:`~pilworld.control_video.lag`), where the arm will actually be; the markers use them as they are;
 2. ``render``: the robot at each of them in every camera (:mod:`~pilworld.control_video.robot_render`);
 3. ``markers``: the paper's Γ in the head view (:class:`~pilworld.control_video.gamma.ControlVideo`,
    unchanged; the wrist views carry no markers, as in the paper);
@@ -28,6 +30,7 @@ from numpy.typing import NDArray
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.cameras import RigCameras
 from pilworld.control_video.gamma import ControlVideo
+from pilworld.control_video.lag import lagged_poses
 from pilworld.control_video.reprojection import ReprojectionPrior, SceneReprojector
 from pilworld.control_video.robot_model import RobotModel
 from pilworld.control_video.robot_render import Backend, RobotRender, RobotRendererBackend, make_robot_renderer
@@ -66,9 +69,14 @@ class GammaPlus:
         robot: RobotModel | None = None,
         cameras: RigCameras | None = None,
         marker_style: ControlVideoStyle | None = None,
+        lag_steps: float | None = None,
     ) -> None:
         self.style = style if isinstance(style, Style) else Style.parse(style)
         self.spec = spec or ChunkSpec()
+        # The render and the prior place the robot where it will be (the commands delayed by the servo lag).
+        self.lag_steps = rig.control_lag_steps if lag_steps is None else float(lag_steps)
+        if not (np.isfinite(self.lag_steps) and 0.0 <= self.lag_steps <= self.spec.executed_steps):
+            raise ValueError(f"lag_steps: expected control steps in [0, {self.spec.executed_steps}], got {lag_steps!r}")
         self.cameras = cameras or RigCameras.from_rig(rig)
         head = next((v for v in self.cameras.views if v.name == HEAD_VIEW), None)
         if self.style.markers and head is None:
@@ -122,9 +130,14 @@ class GammaPlus:
 
         render: RobotRender | None = None
         now_masks: dict[str, NDArray[np.bool_]] | None = None
+        poses = stride
+        if self.lag_steps > 0 and (self.renderer is not None or self.reprojector is not None):
+            before = state if state is not None else previous_state
+            chunk_arr = np.asarray(chunk.actions if isinstance(chunk, ActionChunk) else chunk, dtype=np.float64)
+            poses = lagged_poses(chunk_arr, before, self.spec, self.lag_steps)
         if self.renderer is not None:
             want_current = self.style.prior and current_robot_masks is None
-            q = np.concatenate([np.asarray(state, dtype=np.float64)[None], stride]) if want_current else stride
+            q = np.concatenate([np.asarray(state, dtype=np.float64)[None], poses]) if want_current else poses
             full = self.renderer.render(q, depth=self.style.render, shaded=self.style.render)
             if want_current:
                 now_masks = {v: p[0] > 0 for v, p in full.parts.items()}
@@ -140,7 +153,7 @@ class GammaPlus:
         if self.reprojector is not None:
             assert current_images is not None and state is not None and render is not None
             masks = now_masks if current_robot_masks is None else dict(current_robot_masks)
-            prior = self.reprojector(current_images, np.asarray(state), stride, masks, render.mask)
+            prior = self.reprojector(current_images, np.asarray(state), poses, masks, render.mask)
         images = self._compose(K, render if self.style.render else None, markers, prior)
         return ControlFrames(self.style.name, images, render if self.style.render else None, markers, prior)
 

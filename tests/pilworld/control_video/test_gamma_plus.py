@@ -16,6 +16,7 @@ from pilworld.control_video.cameras import RigCameras
 from pilworld.control_video.examples import HOME_Q14, reach_and_grasp_chunk
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.control_video.gamma_plus import ControlFrames, GammaPlus
+from pilworld.control_video.lag import lagged_poses
 from pilworld.control_video.robot_render import make_robot_renderer
 from pilworld.control_video.styles import STYLES, Style
 from pilworld.types import HEAD_VIEW, ChunkSpec, Observation
@@ -55,9 +56,26 @@ def frames(rig: RigConfig, start: Observation, chunk: np.ndarray[Any, Any]) -> d
 
 
 @pytest.fixture(scope="module")
-def future_parts(rig: RigConfig, chunk: np.ndarray[Any, Any]) -> dict[str, np.ndarray[Any, Any]]:
-    parts: dict[str, np.ndarray[Any, Any]] = make_robot_renderer(rig).render(chunk[SPEC.stride_indices()]).parts
+def future_parts(rig: RigConfig, chunk: np.ndarray[Any, Any], start: Observation) -> dict[str, np.ndarray[Any, Any]]:
+    # Γ⁺ renders the arm where it will be: the commands delayed by the rig's servo lag (1 step on the sim rig).
+    assert rig.control_lag_steps == 1
+    poses = lagged_poses(chunk, start.state, SPEC, rig.control_lag_steps)
+    np.testing.assert_array_equal(poses, chunk[SPEC.stride_indices() - 1])
+    parts: dict[str, np.ndarray[Any, Any]] = make_robot_renderer(rig).render(poses).parts
     return parts
+
+
+def test_zero_lag_renders_the_stride_aligned_actions(
+    rig: RigConfig, chunk: np.ndarray[Any, Any], start: Observation
+) -> None:
+    g = GammaPlus(rig, "render", spec=SPEC, lag_steps=0)
+    f = g(chunk, previous_state=start.state)
+    want = make_robot_renderer(rig).render(chunk[SPEC.stride_indices()]).parts
+    assert f.render is not None
+    for view in f.views:
+        np.testing.assert_array_equal(f.render.parts[view], want[view])
+    with pytest.raises(ValueError, match="lag_steps"):
+        GammaPlus(rig, "render", spec=SPEC, lag_steps=-1)
 
 
 @pytest.mark.parametrize("style", STYLES)
