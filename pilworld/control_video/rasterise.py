@@ -128,22 +128,25 @@ def _view_grid(camera: CameraModel, ss: int, max_scale: float = 3.0) -> _ViewGri
 
 
 def _clip_to_box(poly: NDArray[Any], box: tuple[float, float, float, float]) -> NDArray[np.float64]:
-    """Sutherland–Hodgman: a convex polygon (M, 2) clipped to the box (x0, y0, x1, y1)."""
+    """Sutherland–Hodgman, vectorised per edge: a convex polygon (M, 2) clipped to the box (x0, y0, x1, y1)."""
     pts = np.asarray(poly, dtype=np.float64)
     for axis, bound, keep_less in ((0, box[0], False), (0, box[2], True), (1, box[1], False), (1, box[3], True)):
         if len(pts) == 0:
             break
         side = pts[:, axis] - bound
         inside = side <= 0 if keep_less else side >= 0
-        nxt = np.roll(np.arange(len(pts)), -1)
-        out = []
-        for i, j in zip(range(len(pts)), nxt, strict=True):
-            if inside[i]:
-                out.append(pts[i])
-            if inside[i] != inside[j]:
-                a, b = pts[i], pts[j]
-                out.append(a + (b - a) * (side[i] / (side[i] - side[j])))
-        pts = np.asarray(out).reshape(-1, 2)
+        if inside.all():
+            continue
+        nxt = np.roll(pts, -1, axis=0)
+        side_n = np.roll(side, -1)
+        crosses = inside != np.roll(inside, -1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(crosses, side / (side - side_n), 0.0)
+        cut = pts + (nxt - pts) * t[:, None]
+        # Each vertex emits itself if inside, then the crossing of its outgoing edge if there is one.
+        both = np.stack([pts, cut], axis=1).reshape(-1, 2)
+        keep = np.stack([inside, crosses], axis=1).reshape(-1)
+        pts = both[keep]
     return pts
 
 
@@ -435,7 +438,9 @@ class AnalyticRobotRenderer:
                     cu = K[0, 0] * cp[:, 0] / cp[:, 2] + K[0, 1] * cp[:, 1] / cp[:, 2] + K[0, 2]
                     cv_ = K[1, 1] * cp[:, 1] / cp[:, 2] + K[1, 2]
                     flat_pts = np.stack([cu, cv_], -1).astype(np.float32)
-                    poly = _clip_to_box(np.asarray(cv2.convexHull(flat_pts))[:, 0], box)
+                    poly = np.asarray(cv2.convexHull(flat_pts))[:, 0].astype(np.float64)
+                    if np.abs(poly).max() > lim:  # only a hull reaching far out needs exact clipping
+                        poly = _clip_to_box(poly, box)
                     if len(poly) >= 3:
                         cut[n].append((g, np.rint(poly * _ONE).astype(np.int32)))
         o = (ss - 1) // 2
@@ -526,21 +531,19 @@ class AnalyticRobotRenderer:
         """
         N, H, W = ids.shape
         ss, o = grid.ss, (grid.ss - 1) // 2
-        scratch = np.zeros((H * ss, W * ss), dtype=np.uint8)
+        scratch = np.zeros((N, H * ss, W * ss), dtype=np.uint8)  # polygon of frame n filled with geom + 1
         for r in range(max(len(c) for c in cut)):
-            pix_l, g_l = [], []
+            scratch.fill(0)
             for n in range(N):
                 if r < len(cut[n]):
                     geom, poly = cut[n][r]
-                    scratch.fill(0)
-                    cv2.fillConvexPoly(scratch, poly, 1, cv2.LINE_8, _SHIFT)
-                    yx = np.flatnonzero(scratch[o::ss, o::ss])
-                    pix_l.append(n * H * W + yx)
-                    g_l.append(np.full(yx.size, geom, dtype=np.int64))
-            pix = np.concatenate(pix_l)
+                    cv2.fillConvexPoly(scratch[n], poly, geom + 1, cv2.LINE_8, _SHIFT)
+            sampled = scratch[:, o::ss, o::ss]
+            pix = np.flatnonzero(sampled)
             if pix.size == 0:
                 continue
-            pix, g, (t, *_), _, _ = self._intersect(pix, np.concatenate(g_l), Pc, Rc, grid)
+            g_in = sampled.reshape(-1)[pix].astype(np.int64) - 1
+            pix, g, (t, *_), _, _ = self._intersect(pix, g_in, Pc, Rc, grid)
             seen = t >= self.near  # inf (a miss) never wins below
             keep = seen & np.isfinite(t)
             pix, g, t = pix[keep], g[keep], t[keep]
