@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Final
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
+from hw_drivers.sim.board_plate import board_texture_png, page_corners_board, plate_asset_xml
 from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_SIDES
 
@@ -99,9 +99,7 @@ class BoardMount:
 
     def page_corners_board(self) -> FloatArray:
         """``(4, 3)`` page corners (margin included), board frame: top-left, top-right, bottom-right, bottom-left."""
-        m = self.board.margin_m
-        w, h = self.board.size_m
-        return np.array([[-m, -m, 0.0], [w + m, -m, 0.0], [w + m, h + m, 0.0], [-m, h + m, 0.0]])
+        return page_corners_board(self.board)
 
     def page_corners_tcp(self) -> FloatArray:
         """``(4, 3)`` page corners in the TCP frame (metres)."""
@@ -120,11 +118,7 @@ class BoardMount:
     @cached_property
     def texture_png(self) -> bytes:
         """The page (board and margin) as a grayscale PNG, area-antialiased so edges sit at sub-texel accuracy."""
-        image = self.board.render(self.texture_ppm, antialias=True)
-        ok, encoded = cv2.imencode(".png", image)
-        if not ok:  # pragma: no cover - OpenCV always encodes a uint8 image
-            raise OSError("could not encode the board texture")
-        return bytes(encoded.tobytes())
+        return board_texture_png(self.board, self.texture_ppm, "board")
 
     def assets(self) -> dict[str, bytes]:
         """The ``assets`` mapping for ``mujoco.MjModel.from_xml_string``."""
@@ -132,59 +126,7 @@ class BoardMount:
 
     def asset_xml(self) -> str:
         """The ``<asset>`` children: the texture, an unlit-looking material and the textured plate mesh."""
-        m = self.board.margin_m
-        page_w, page_h = self.board.page_size_m
-        front = self.page_corners_board()
-        back = front + np.array([0.0, 0.0, self.thickness_m])  # behind the face (board z points into it)
-        verts = self._to_tcp(np.concatenate([front, back]))
-        uv = (front[:, :2] + m) / np.array([page_w, page_h])
-        texcoord = np.concatenate([uv, uv])  # the thin sides repeat the edge texels
-        # Front faces wind counter-clockwise seen from the camera side (normal -z_board); the others follow.
-        faces = [
-            0,
-            2,
-            1,
-            0,
-            3,
-            2,
-            4,
-            5,
-            6,
-            4,
-            6,
-            7,
-            0,
-            1,
-            5,
-            0,
-            5,
-            4,
-            1,
-            2,
-            6,
-            1,
-            6,
-            5,
-            2,
-            3,
-            7,
-            2,
-            7,
-            6,
-            3,
-            0,
-            4,
-            3,
-            4,
-            7,
-        ]
-        return (
-            f'<texture name="{_MESH_NAME}" type="2d" file="{BOARD_TEXTURE_FILE}"/>'
-            f'<material name="{_MESH_NAME}" texture="{_MESH_NAME}" rgba="1 1 1 1" specular="0" shininess="0" '
-            'emission="0.35"/>'
-            f'<mesh name="{_MESH_NAME}" vertex="{_f(verts)}" texcoord="{_f(texcoord)}" '
-            f'face="{" ".join(str(i) for i in faces)}"/>'
-        )
+        return plate_asset_xml(self.board, self.thickness_m, self._to_tcp, _MESH_NAME, BOARD_TEXTURE_FILE)
 
     def geom_xml(self) -> str:
         """The plate geom and its bracket, for the ``{arm}_tcp_frame`` body (coordinates in the TCP frame).

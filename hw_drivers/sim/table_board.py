@@ -19,11 +19,11 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Final
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
+from hw_drivers.sim.board_plate import board_texture_png, page_corners_board, plate_asset_xml
 from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_SIDES
 
@@ -38,11 +38,6 @@ _NAME: Final = "table_calibration_board"
 #: tasks' object area (cubes within |y| <= 0.26 m), within easy reach of that arm.
 DEFAULT_CENTRE: Final = {"left": (-0.05, 0.37), "right": (-0.05, -0.37)}
 # Two triangles per face of the plate's box: front (seen from above), back, then the four sides.
-_FACES: Final = "0 2 1 0 3 2 4 5 6 4 6 7 0 1 5 0 5 4 1 2 6 1 6 5 2 3 7 2 7 6 3 0 4 3 4 7"
-
-
-def _f(values: npt.ArrayLike) -> str:
-    return " ".join(f"{float(v):.12g}" for v in np.asarray(values, dtype=np.float64).reshape(-1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,9 +103,7 @@ class TableBoard:
 
     def page_corners_board(self) -> FloatArray:
         """``(4, 3)`` page corners (margin included), board frame."""
-        m = self.board.margin_m
-        w, h = self.board.size_m
-        return np.array([[-m, -m, 0.0], [w + m, -m, 0.0], [w + m, h + m, 0.0], [-m, h + m, 0.0]])
+        return page_corners_board(self.board)
 
     def to_rig(self, points: npt.ArrayLike) -> FloatArray:
         """Board-frame points ``(n, 3)`` → rig frame."""
@@ -129,11 +122,7 @@ class TableBoard:
     @cached_property
     def texture_png(self) -> bytes:
         """The page (board and margin) as a grayscale PNG, area-antialiased."""
-        image = self.board.render(self.texture_ppm, antialias=True)
-        ok, encoded = cv2.imencode(".png", image)
-        if not ok:  # pragma: no cover - OpenCV always encodes a uint8 image
-            raise OSError("could not encode the table board texture")
-        return bytes(encoded.tobytes())
+        return board_texture_png(self.board, self.texture_ppm, "table board")
 
     def assets(self) -> dict[str, bytes]:
         """The ``assets`` mapping for ``mujoco.MjModel.from_xml_string``."""
@@ -141,19 +130,7 @@ class TableBoard:
 
     def asset_xml(self) -> str:
         """The ``<asset>`` children: texture, material and the textured plate mesh (rig-frame vertices)."""
-        m = self.board.margin_m
-        page_w, page_h = self.board.page_size_m
-        front = self.page_corners_board()
-        back = front + np.array([0.0, 0.0, self.thickness_m])  # below the face (board z points into it)
-        verts = self.to_rig(np.concatenate([front, back]))
-        uv = (front[:, :2] + m) / np.array([page_w, page_h])
-        texcoord = np.concatenate([uv, uv])
-        return (
-            f'<texture name="{_NAME}" type="2d" file="{TABLE_BOARD_TEXTURE_FILE}"/>'
-            f'<material name="{_NAME}" texture="{_NAME}" rgba="1 1 1 1" specular="0" shininess="0" emission="0.35"/>'
-            f'<mesh name="{_NAME}" vertex="{_f(verts)}" texcoord="{_f(texcoord)}" '
-            f'face="{_FACES}"/>'
-        )
+        return plate_asset_xml(self.board, self.thickness_m, self.to_rig, _NAME, TABLE_BOARD_TEXTURE_FILE)
 
     def geom_xml(self) -> str:
         """The plate geom, for the world body."""

@@ -301,7 +301,7 @@ def plan_board_poses(
             f"pose planner ({arm} arm): none of {s.candidates} candidate board poses is feasible ({reasons})"
         )
     chosen = _farthest_points(feasible, s.poses, s.position_weight_m)
-    ordered = _visit_order([feasible[i] for i in chosen], q_start)
+    ordered = visit_order([feasible[i] for i in chosen], q_start)
     motion = None
     if for_calibration:
         try:
@@ -339,7 +339,7 @@ def _farthest_points(poses: list[PlannedPose], n: int, position_weight_m: float)
     return chosen
 
 
-def _visit_order(poses: list[PlannedPose], q_start: FloatArray) -> list[PlannedPose]:
+def visit_order(poses: list[PlannedPose], q_start: FloatArray) -> list[PlannedPose]:
     """Nearest-neighbour tour in joint space from the start joints (shorter, smoother robot moves)."""
     left = list(range(len(poses)))
     order: list[int] = []

@@ -39,7 +39,7 @@ from calib.handeye_in_hand import check_eye_in_hand_motion
 from calib.rotations import rigid, rotation_angle, rotation_exp
 from hw_drivers.sim.scene import FINGER_CENTRE_BELOW_TCP, FINGER_HALF, PALM_HALF
 from pilworld.calibration.occlusion import arm_capsules, segment_distances
-from pilworld.calibration.planner import PlannedPose, PosePlan
+from pilworld.calibration.planner import PlannedPose, PosePlan, visit_order
 from pilworld.geometry import invert_transform
 from pilworld.kinematics.dual_arm import ArmMount, DualArmKinematics
 from pilworld.kinematics.fk import fk_frames
@@ -301,7 +301,7 @@ def plan_wrist_poses(
             f"wrist pose planner ({arm} arm): none of {s.candidates} candidate camera poses is feasible ({reasons})"
         )
     chosen = _farthest_points(np.asarray(cams), s.poses, s.position_weight_m)
-    ordered = _visit_order([feasible[i] for i in chosen], q_start)
+    ordered = visit_order([feasible[i] for i in chosen], q_start)
     motion = None
     if for_calibration:
         try:
@@ -333,16 +333,3 @@ def _farthest_points(cams: FloatArray, n: int, position_weight_m: float) -> list
         chosen.append(k)
         nearest = np.minimum(nearest, _distances(cams, k, position_weight_m))
     return chosen
-
-
-def _visit_order(poses: list[PlannedPose], q_start: FloatArray) -> list[PlannedPose]:
-    """Nearest-neighbour tour in joint space from the start joints."""
-    left = list(range(len(poses)))
-    order: list[int] = []
-    q = q_start
-    while left:
-        k = min(left, key=lambda i: float(np.max(np.abs(poses[i].q - q))))
-        order.append(k)
-        left.remove(k)
-        q = poses[k].q
-    return [poses[i] for i in order]
