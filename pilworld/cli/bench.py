@@ -410,6 +410,13 @@ def _calibration(args: argparse.Namespace) -> int:
             f"hand-eye (synthetic, {syn['pixel_noise_px']} px noise, {syn['poses']} poses): "
             f"{syn['handeye_trans_err_mm']:.3g} mm, {syn['handeye_rot_err_deg']:.3g}°"
         )
+    if "wrist" in r:
+        for cam, w in r["wrist"]["cameras"].items():
+            print(
+                f"eye-in-hand {cam} ({r['wrist_source']}): max {w['trans_err_mm_max']:.3g} mm, "
+                f"{w['rot_err_deg_max']:.3g}° over the seeds (median {w['trans_err_mm_median']:.3g} mm, "
+                f"{w['rot_err_deg_median']:.3g}°)"
+            )
     settings = r["sweep_settings"]
     print(f"sweep: {settings['trials']} trials per point, OpenCV {r['opencv_version']} (median mm / median deg)")
     for axis, per in r["sweep"].items():
