@@ -16,7 +16,9 @@ closed-form and OpenCV cross-checks, the two arms' disagreement, and for a simul
 Degenerate motion exits with ``pilworld: error: hand-eye: degenerate motion: <arm>: <cause>``.
 
 ``check`` projects the FK gripper points (and, with the hand-eye report, the board corners) on held-out
-views (``--images DIR`` or new simulated poses), prints the pixel error per arm and writes overlays.
+views (``--images DIR`` or new simulated poses), prints the pixel error per arm and writes overlays. With
+``--camera cam_left_wrist`` it checks a wrist camera eye-in-hand: the board corners FK · ``T_tcp_cam`` ·
+``T_rig_board`` predicts against the detected ones, per view (``pilworld.calibration.wrist_check``).
 See docs/calibration.md. Live capture from a real camera (``--camera SOURCE``) is not implemented yet.
 """
 
@@ -117,22 +119,50 @@ def register(sub: Any) -> None:
     h.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
     h.set_defaults(handler=_handeye)
 
-    c = cmds.add_parser("check", help="FK-projected gripper points on held-out views: pixel error per arm")
+    c = cmds.add_parser(
+        "check",
+        help="held-out views: the head camera's FK-projected gripper points per arm, or a wrist camera's board "
+        "corners (--camera NAME)",
+    )
     c.add_argument("--rig", type=Path, required=True, help="rig config")
     c.add_argument(
-        "--camera-model", type=Path, help="calibrated camera YAML (default: the rig's head_camera.file or design)"
+        "--camera",
+        default=HEAD_VIEW,
+        help=f"camera to check (default {HEAD_VIEW}); a wrist camera, e.g. cam_left_wrist, is checked eye-in-hand: "
+        "the board fixed on the table, its arm moving, the rig's wrist_cameras.<name>.file under test",
+    )
+    c.add_argument(
+        "--camera-model",
+        type=Path,
+        help="calibrated camera YAML (default: the rig's head_camera.file or wrist_cameras.<name>.file, else design)",
     )
     c.add_argument(
         "--handeye-report", type=Path, help="hand-eye JSON report for the board check (default: beside the model)"
+    )
+    c.add_argument(
+        "--report",
+        type=Path,
+        help="calibration JSON report: for a wrist camera on a recorded folder, holds the board pose T_rig_board "
+        "(default: beside the camera model); for the head camera, the same as --handeye-report",
     )
     source = c.add_mutually_exclusive_group()
     source.add_argument("--images", type=Path, help="recorded folder (NNN.png + poses.json)")
     source.add_argument("--sim", action="store_true", help="new held-out poses on the simulated rig (the default)")
     c.add_argument("--arm", choices=("left", "right", "both"), default="both", help="simulated rig: arms to move")
     c.add_argument("--poses", type=int, default=6, help="simulated rig: held-out poses per arm (default 6)")
-    c.add_argument("--seed", type=int, default=1, help="simulated rig: planner seed (default 1, not handeye's 0)")
+    c.add_argument(
+        "--seed",
+        type=int,
+        default=1,
+        help="simulated rig: planner seed (default 1, not handeye's 0); a wrist camera plans with seed + 1000",
+    )
     c.add_argument("--out", type=Path, help="folder for overlay PNGs and check.json")
-    c.add_argument("--max-px", type=float, help="exit 1 if an error (gripper max or board RMS at rig size) exceeds it")
+    c.add_argument(
+        "--max-px",
+        type=float,
+        help="exit 1 if an error at rig size exceeds it (head: gripper max or board RMS per arm; wrist: the worst "
+        "view's corner RMS)",
+    )
     c.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     c.set_defaults(handler=_check)
 
@@ -484,13 +514,15 @@ def _check(args: argparse.Namespace) -> int:
     from pilworld.calibration.sim_handeye import DEFAULT_BOARD, record_sim, sim_calibration_camera
 
     rig = RigConfig.load(args.rig)
+    if args.camera != HEAD_VIEW:
+        return _check_wrist(args, rig)
     if args.camera_model is not None:
         camera = CameraModel.from_yaml(args.camera_model)
     elif rig.head_camera.file is not None:
         camera = CameraModel.from_yaml(rig.head_camera.file)
     else:
         camera = sim_calibration_camera(rig, 1024)  # a designed camera: checks the pipeline, not a calibration
-    report_path = args.handeye_report
+    report_path = args.handeye_report or args.report
     model_path = args.camera_model or (Path(rig.head_camera.file) if rig.head_camera.file else None)
     if report_path is None and model_path is not None and model_path.with_suffix(".json").is_file():
         report_path = model_path.with_suffix(".json")
@@ -543,5 +575,108 @@ def _check(args: argparse.Namespace) -> int:
         ]
         if any(v > args.max_px for v in worst):
             print(f"pilworld: check failed: an error exceeds --max-px {args.max_px}", file=sys.stderr)
+            return 1
+    return 0
+
+
+def _check_wrist(args: argparse.Namespace, rig: RigConfig) -> int:
+    """``check --camera <wrist camera>``: FK-predicted board corners on held-out views of the table board."""
+    from pilworld.calibration.recording import Recording
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD
+    from pilworld.calibration.wrist_check import check_wrist_views, record_wrist_check_sim
+    from pilworld.calibration.wrist_sim import WristTruth, sim_wrist_camera, wrist_arm
+
+    name = args.camera
+    arm = wrist_arm(rig, name)  # a one-line error listing the rig's cameras for an unknown name
+    rig_size = (rig.image_size.width, rig.image_size.height)
+    file = rig.wrist_cameras[name].file
+    model_path = args.camera_model or (Path(file) if file is not None else None)
+    camera = CameraModel.from_yaml(model_path) if model_path is not None else None
+    if camera is None:
+        print(
+            f"note: {name} has no file: in the rig config {args.rig} (wrist_cameras.{name}.file); checking its "
+            "designed mount (pose_in_tcp, fovy_deg)"
+        )
+    board = ChArUcoBoard.from_yaml(DEFAULT_BOARD)
+    if args.images is not None:
+        recording = Recording.load(args.images)
+        board = recording.board
+        sizes = {v.image_size for v in recording.views if v.arm == arm}
+        if len(sizes) != 1:
+            raise ValueError(f"--images {args.images}: expected {arm}-arm views of one image size, got {sorted(sizes)}")
+        (w, h) = sizes.pop()
+        if camera is None:
+            design = sim_wrist_camera(rig, name, w)  # the designed pinhole and mount
+            intr = recording.camera if recording.camera is not None else design
+            camera = intr.with_pose(design.T_cam_base)
+        elif (camera.width, camera.height) != (w, h):
+            if abs(camera.width / camera.height - w / h) > 1e-6:
+                raise ValueError(
+                    f"--images {args.images}: images are {w}x{h} but the camera model is {camera.width}x"
+                    f"{camera.height} (another aspect ratio); calibrate at the images' resolution"
+                )
+            camera = camera.resized(w, h)
+        report_path = args.report
+        if report_path is None and model_path is not None and model_path.with_suffix(".json").is_file():
+            report_path = model_path.with_suffix(".json")
+        truth = WristTruth.from_extra(recording.extra)
+        if report_path is not None:
+            doc = json.loads(Path(report_path).read_text(encoding="utf-8"))
+            if "T_rig_board" not in doc:
+                raise ValueError(f"--report {report_path}: no T_rig_board (expected a wrist calibration report)")
+            T_rig_board = np.asarray(doc["T_rig_board"], dtype=np.float64).reshape(4, 4)
+            board_source = f"the calibration report {report_path}"
+        elif truth is not None and truth.camera == name:
+            T_rig_board = truth.T_rig_board
+            board_source = "the simulator's table board (recorded truth)"
+        else:
+            raise ValueError(
+                f"--report: needed, the calibration JSON holding the board pose T_rig_board (the board must lie "
+                f"where it lay for the calibration); none beside {model_path or 'the camera model'}"
+            )
+        source = str(args.images)
+        print(
+            f"{len(recording.for_arm(arm))} recorded {arm}-arm views in {args.images}; board pose from {board_source}"
+        )
+    else:
+        if camera is None:
+            camera = sim_wrist_camera(rig, name, 1024)
+        if camera.dist.size and np.any(camera.dist != 0):
+            raise ValueError(
+                f"{name}: the camera model has lens distortion, which the simulated rig cannot render; use --images"
+            )
+        if args.poses < 1:
+            raise ValueError(f"--poses: expected a number of camera poses >= 1, got {args.poses}")
+        print(f"rendering {args.poses} held-out {name} poses on the simulated rig ({camera.width} px wide)")
+        recording, T_rig_board = record_wrist_check_sim(
+            rig, name, board=board, poses=args.poses, seed=args.seed, resolution=camera.width, log=print
+        )
+        source = "simulated rig"
+    result = check_wrist_views(
+        recording.views, camera, recording.board, rig.kinematics, arm, T_rig_board, rig_size=rig_size, name=name
+    )
+    checked = result.to_dict()
+    summary: dict[str, Any] = {
+        "camera_model": str(model_path) if model_path else None,
+        "designed_mount": model_path is None,
+        "source": source,
+        "T_rig_board": np.asarray(T_rig_board).tolist(),
+        **checked,
+    }
+    for line in result.lines():
+        print(line)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        for view, image in result.overlays.items():
+            cv2.imwrite(str(args.out / f"check_{Path(view).stem}.png"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+        (args.out / "check.json").write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
+        print(f"wrote {len(result.overlays)} overlays and check.json to {args.out}")
+    if args.json:
+        print(json.dumps(summary))
+    if args.max_px is not None:
+        worst = checked.get("worst_view_rms_px_at_rig_size")
+        if worst is None or worst > args.max_px:
+            what = "no view showed the board" if worst is None else f"a view's corner RMS {worst:.4f} px at rig size"
+            print(f"pilworld: check failed: {what} (--max-px {args.max_px})", file=sys.stderr)
             return 1
     return 0
