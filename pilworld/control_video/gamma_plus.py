@@ -1,7 +1,7 @@
 """Γ⁺: the kinematic control video of a chunk in every view — the robot's own render, the paper's markers,
 the scene reprojected into moving cameras — in the combination a style names.
 
-``GammaPlus.from_rig(rig, style)(chunk, current_images=…, current_state=…) -> ControlFrames``:
+``GammaPlus(rig, style)(chunk, current_images=…, current_state=…) -> ControlFrames``:
 
 1. the chunk's K stride-aligned actions (rows Δ−1, 2Δ−1, …, KΔ−1), validated as Γ validates them; the
    render and the prior use them delayed by the rig's servo lag (``control_lag_steps``,
@@ -90,10 +90,6 @@ class GammaPlus:
         if self.style.render or self.style.prior:  # the prior needs the robot's pixels removed
             self.renderer = make_robot_renderer(rig, backend, robot=robot, cameras=self.cameras)
         self.reprojector = SceneReprojector(self.cameras) if self.style.prior else None
-
-    @classmethod
-    def from_rig(cls, rig: RigConfig, style: str | Style = "render", **kwargs: object) -> GammaPlus:
-        return cls(rig, style, **kwargs)  # type: ignore[arg-type]
 
     @property
     def views(self) -> tuple[str, ...]:

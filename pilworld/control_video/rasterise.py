@@ -37,7 +37,16 @@ from numpy.typing import NDArray
 from calib.camera_model import CameraModel
 from pilworld.control_video import raycast
 from pilworld.control_video.cameras import RigCameras
-from pilworld.control_video.robot_model import BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, SPHERE, RobotModel
+from pilworld.control_video.robot_model import (
+    BOX,
+    CAPSULE,
+    CYLINDER,
+    ELLIPSOID,
+    GEOM_TYPE_NAMES,
+    MESH,
+    SPHERE,
+    RobotModel,
+)
 from pilworld.control_video.robot_render import RobotRender
 from pilworld.types import STATE_DIM
 
@@ -163,7 +172,7 @@ class AnalyticRobotRenderer:
 
     def __init__(self, robot: RobotModel, cameras: RigCameras, supersample: int = SUPERSAMPLE) -> None:
         types = robot.geom_type
-        bad = sorted({int(t) for t in types if t not in SUPPORTED})
+        bad = sorted({GEOM_TYPE_NAMES.get(int(t), str(int(t))) for t in types if t not in SUPPORTED})
         if bad:
             raise ValueError(
                 f"robot model {robot.source}: geom types {bad} cannot be rasterised analytically "

@@ -12,6 +12,7 @@ Part ids (uint8): 0 background, 1 left arm, 2 left fingers, 3 right arm, 4 right
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -32,8 +33,17 @@ PART_IDS: Final = {name: i for i, name in enumerate(PART_NAMES)}
 HIDDEN_GROUP: Final = 5
 #: Geom types the analytic rasteriser draws (MuJoCo's mjtGeom numbering).
 SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH = 2, 3, 4, 5, 6, 7
-GEOM_TYPE_NAMES: Final = {0: "plane", 1: "hfield", 2: "sphere", 3: "capsule", 4: "ellipsoid", 5: "cylinder", 6: "box"}
-GEOM_TYPE_NAMES_ALL: Final = {**GEOM_TYPE_NAMES, 7: "mesh", 8: "sdf"}
+GEOM_TYPE_NAMES: Final = {
+    0: "plane",
+    1: "hfield",
+    2: "sphere",
+    3: "capsule",
+    4: "ellipsoid",
+    5: "cylinder",
+    6: "box",
+    7: "mesh",
+    8: "sdf",
+}
 
 
 def part_id(side: str, fingers: bool) -> int:
@@ -188,7 +198,7 @@ class RobotModel:
         """A mismatched copy for the stability probes: round geoms' radii × ``radius_scale``, colours replaced."""
         if not 0.1 <= radius_scale <= 10.0:
             raise ValueError(f"radius_scale: expected a factor in [0.1, 10], got {radius_scale!r}")
-        model = _copy_model(self.model)
+        model = copy.deepcopy(self.model)
         round_geoms = self.geom_ids[np.isin(self.geom_type, (SPHERE, CAPSULE, CYLINDER))]
         model.geom_size[round_geoms, 0] *= radius_scale
         if rgba is not None:
@@ -196,9 +206,3 @@ class RobotModel:
         return RobotModel(
             model, self.geom_ids, self.geom_part, self.arm_qadr, self.finger_qadr, self.finger_range, self.source
         )
-
-
-def _copy_model(model: Any) -> Any:
-    import copy
-
-    return copy.deepcopy(model)

@@ -52,12 +52,6 @@ class RobotRender:
         """view → (N, H, W) True where the robot is."""
         return {v: p > 0 for v, p in self.parts.items()}
 
-    @staticmethod
-    def part_names() -> tuple[str, ...]:
-        from pilworld.control_video.robot_model import PART_NAMES
-
-        return tuple(PART_NAMES)
-
 
 class RobotRendererBackend(Protocol):
     """What a backend implements: render (N, 14) joint vectors in every view."""
