@@ -25,7 +25,7 @@ from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
 from pilworld.config.rig import RigConfig
-from pilworld.control_video.examples import random_chunks
+from pilworld.control_video.examples import random_chunks, starting_at
 from pilworld.control_video.gamma_plus import GammaPlus
 from pilworld.control_video.robot_render import Backend
 from pilworld.control_video.styles import Style
@@ -53,9 +53,7 @@ def sim_starts(rig: RigConfig, n: int, task: str = "sort_cubes") -> list[Observa
 
 def chunks_from(state: NDArray[np.floating], n: int, spec: ChunkSpec, seed: int) -> NDArray[np.float64]:
     """(n, H, 14) smooth random chunks that start at ``state`` (offsets of random_chunks from home)."""
-    base = random_chunks(n, spec.horizon, seed=seed).astype(np.float64)
-    lead = np.linspace(1.0, 0.0, spec.horizon)[None, :, None]
-    out: NDArray[np.float64] = base + (np.asarray(state, dtype=np.float64)[None, None] - base[:, :1]) * lead
+    out: NDArray[np.float64] = starting_at(random_chunks(n, spec.horizon, seed=seed), state).astype(np.float64)
     return out
 
 

@@ -93,24 +93,8 @@ def run(args: argparse.Namespace) -> int:
         return _run_gamma_plus(args, rig, spec, style)
     gamma = ControlVideo.from_rig(rig, spec, ControlVideoStyle(trace_length=args.trace_length))
 
-    actions = load_npy(args.actions, what="--actions")
-    if not (actions.ndim in (2, 3) and actions.shape[-1] == STATE_DIM):
-        raise ValueError(
-            f"--actions: expected shape (H, {STATE_DIM}) or (R, H, {STATE_DIM}), "
-            f"got {actions.shape} from {args.actions}"
-        )
-    if actions.ndim == 2:
-        actions = actions[None]
-    if actions.shape[1] < spec.executed_steps:
-        raise ValueError(
-            f"--actions: chunk has {actions.shape[1]} steps but K·Δ = {spec.frames}·{spec.stride} = "
-            f"{spec.executed_steps} are needed ({args.actions})"
-        )
-    previous = None
-    if args.previous_state is not None:
-        previous = load_npy(args.previous_state, what="--previous-state").reshape(-1)
-        if previous.shape != (STATE_DIM,):
-            raise ValueError(f"--previous-state: expected {STATE_DIM} values, got shape {previous.shape}")
+    actions = _load_chunks(args.actions, spec)
+    previous = _load_previous(args)
 
     # Rounds chain: round r starts where round r−1's last stride-aligned action left the arms.
     stride_actions = gamma.stride_aligned(actions)
@@ -158,6 +142,16 @@ def _load_chunks(path: Path, spec: ChunkSpec) -> np.ndarray:
     return actions.astype(np.float64)
 
 
+def _load_previous(args: argparse.Namespace) -> np.ndarray | None:
+    """``--previous-state`` as a float64 (14,) vector, or None."""
+    if args.previous_state is None:
+        return None
+    previous = load_npy(args.previous_state, what="--previous-state").reshape(-1).astype(np.float64)
+    if previous.shape != (STATE_DIM,):
+        raise ValueError(f"--previous-state: expected {STATE_DIM} values, got shape {previous.shape}")
+    return previous
+
+
 def _current(args: argparse.Namespace, rig: RigConfig) -> tuple[dict[str, np.ndarray] | None, np.ndarray | None]:
     """The frames and state a chunk starts from: a simulated task start, files, or none."""
     if args.task is not None and args.current_images is not None:
@@ -201,11 +195,7 @@ def _run_gamma_plus(args: argparse.Namespace, rig: RigConfig, spec: ChunkSpec, s
 
     actions = _load_chunks(args.actions, spec)
     images, state = _current(args, rig)
-    previous = None
-    if args.previous_state is not None:
-        previous = load_npy(args.previous_state, what="--previous-state").reshape(-1).astype(np.float64)
-        if previous.shape != (STATE_DIM,):
-            raise ValueError(f"--previous-state: expected {STATE_DIM} values, got shape {previous.shape}")
+    previous = _load_previous(args)
     if previous is None:
         previous = state
     if style.prior and (images is None or (state is None and previous is None)):

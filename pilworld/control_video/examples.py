@@ -72,13 +72,13 @@ def random_chunks(
 
 
 def starting_at(chunk: NDArray[np.floating], state: NDArray[np.floating]) -> NDArray[np.float32]:
-    """``chunk`` (H, 14) bent to begin at ``state``: the offset of its first row fades out linearly.
+    """``chunk`` (..., H, 14) bent to begin at ``state`` (14,): the offset of its first row fades out linearly.
 
     A chunk written for one start pose then continues from another one smoothly, as a policy's would.
     """
     c = np.asarray(chunk, dtype=np.float64)
-    lead = np.linspace(1.0, 0.0, c.shape[0])[:, None]
-    return (c + (np.asarray(state, dtype=np.float64)[None] - c[:1]) * lead).astype(np.float32)
+    lead = np.linspace(1.0, 0.0, c.shape[-2])[:, None]
+    return (c + (np.asarray(state, dtype=np.float64) - c[..., :1, :]) * lead).astype(np.float32)
 
 
 def main(argv: list[str] | None = None) -> int:
