@@ -516,8 +516,8 @@ def _camera_motion(cameras: RigCameras, clip: Clip, view: str) -> float:
     return float(np.linalg.norm(centres[1] - centres[0]))
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m pilworld.bench.reprojection", description=__doc__.split("\n")[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The bench's options, for ``python -m pilworld.bench.reprojection`` and ``pilworld bench reprojection``."""
     parser.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     parser.add_argument("--quick", action="store_true", help="one task, one run, one subtask, 64x64 (seconds)")
     parser.add_argument("--episodes", type=int, default=None, help="runs per task (default 3; quick 1)")
@@ -531,7 +531,16 @@ def main(argv: list[str] | None = None) -> int:
         default="render",
         help="robot pixels from the analytic render as Γ⁺ computes them (default) or the simulator's segmentation",
     )
-    args = parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m pilworld.bench.reprojection", description=__doc__.split("\n")[0])
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the bench for parsed options (see :func:`add_arguments`); prints the table or the JSON line."""
     try:
         if args.figure is not None:
             rig = _sized(RigConfig.load(args.rig), args.size or 128)

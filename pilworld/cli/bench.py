@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from pilworld.bench.reprojection import add_arguments as reprojection_arguments
 from pilworld.cli.control_video import parse_size
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
@@ -67,16 +68,7 @@ def register(sub: Any) -> None:
     rp = benches.add_parser(
         "reprojection", help="Γ⁺ scene prior vs the frozen frame on held-out clips: PSNR per view at k = 1, 5, 10, 15"
     )
-    rp.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
-    rp.add_argument("--quick", action="store_true", help="one task, one run, one subtask, 64x64 (seconds)")
-    rp.add_argument("--episodes", type=int, default=None, help="runs per task (default 3; quick 1)")
-    rp.add_argument("--subtasks", type=int, default=None, help="subtasks per run (default 3; quick 1)")
-    rp.add_argument("--size", type=int, default=None, help="image size in pixels (default 128; quick 64)")
-    rp.add_argument(
-        "--masks", choices=("render", "segmentation"), default="render", help="robot pixels (default render)"
-    )
-    rp.add_argument("--figure", type=Path, default=None, help="also write an example PNG")
-    rp.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    reprojection_arguments(rp)
     rp.set_defaults(handler=_reprojection)
 
     dt = benches.add_parser("data", help="episode store write/read frames per second and clip loader rate")
@@ -314,16 +306,9 @@ def _robot_render(args: argparse.Namespace) -> int:
 
 
 def _reprojection(args: argparse.Namespace) -> int:
-    from pilworld.bench.reprojection import main
+    from pilworld.bench.reprojection import run
 
-    argv = ["--rig", str(args.rig), "--masks", args.masks]
-    for flag, value in (("--episodes", args.episodes), ("--subtasks", args.subtasks), ("--size", args.size)):
-        if value is not None:
-            argv += [flag, str(value)]
-    if args.figure is not None:
-        argv += ["--figure", str(args.figure)]
-    argv += ["--quick"] * bool(args.quick) + ["--json"] * bool(args.json)
-    return main(argv)
+    return run(args)
 
 
 def _data(args: argparse.Namespace) -> int:
