@@ -45,6 +45,7 @@ from calib.handeye import (
     METHODS,
     DegenerateMotionError,
     MotionReport,
+    _pairs,
     check_motion,
     solve_ax_xb,
     solve_ax_zb,
@@ -70,10 +71,6 @@ ADD_ROTATIONS: Final = (
     "add rotations about two different axes: tilt the wrist camera by 15-35° about two different axes (e.g. "
     "the TCP's x and y axes), keeping the board in view"
 )
-
-
-def _pairs(n: int) -> list[tuple[int, int]]:
-    return [(i, j) for i in range(n) for j in range(i + 1, n)]
 
 
 def check_eye_in_hand_motion(
