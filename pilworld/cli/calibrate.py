@@ -29,8 +29,9 @@ import json
 import sys
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -43,6 +44,9 @@ from calib.intrinsics import IntrinsicsOptions, IntrinsicsResult, calibrate_intr
 from calib.pdf import page_size_points
 from pilworld.config.rig import RigConfig
 from pilworld.types import HEAD_VIEW
+
+if TYPE_CHECKING:
+    from pilworld.calibration.recording import Recording
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
@@ -258,9 +262,30 @@ def _intrinsics(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------- handeye
 
 
+def _recording(
+    args: argparse.Namespace, poses_noun: str, collecting: str, record: Callable[[], Recording]
+) -> tuple[Recording, str]:
+    """The views to solve: the ``--from`` folder, or a new simulated recording (saved with ``--save``)."""
+    from pilworld.calibration.recording import Recording
+
+    if args.from_dir is not None:
+        recording = Recording.load(args.from_dir)
+        print(f"{len(recording.views)} recorded views in {args.from_dir}")
+        return recording, str(args.from_dir)
+    if args.poses < 1:
+        raise ValueError(f"--poses: expected a number of {poses_noun} >= 1, got {args.poses}")
+    print(collecting)
+    try:
+        recording = record()
+    except DegenerateMotionError as exc:
+        raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
+    if args.save is not None:
+        print(f"saved the views to {recording.save(args.save).parent}")
+    return recording, "simulated rig"
+
+
 def _handeye(args: argparse.Namespace) -> int:
     # Imported here: the simulator (MuJoCo, GL) is only needed by these two commands.
-    from pilworld.calibration.recording import Recording
     from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, held_out_states, record_sim, truth_errors
     from pilworld.calibration.solve import solve_recording
 
@@ -273,29 +298,20 @@ def _handeye(args: argparse.Namespace) -> int:
     args.arm = args.arm or "left"
     arms = arms_for(args.arm)
     board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
-    if args.from_dir is not None:
-        recording = Recording.load(args.from_dir)
-        source = str(args.from_dir)
-        print(f"{len(recording.views)} recorded views in {args.from_dir}")
-    else:
-        if args.poses < 1:
-            raise ValueError(f"--poses: expected a number of board poses >= 1, got {args.poses}")
-        print(f"collecting board views on the simulated rig {rig.name!r} ({args.resolution} px wide)")
-        try:
-            recording = record_sim(
-                rig,
-                args.arm,
-                board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
-                poses=args.poses,
-                seed=args.seed,
-                resolution=args.resolution,
-                log=print,
-            )
-        except DegenerateMotionError as exc:
-            raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
-        source = "simulated rig"
-        if args.save is not None:
-            print(f"saved the views to {recording.save(args.save).parent}")
+    recording, source = _recording(
+        args,
+        "board poses",
+        f"collecting board views on the simulated rig {rig.name!r} ({args.resolution} px wide)",
+        lambda: record_sim(
+            rig,
+            args.arm,
+            board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
+            poses=args.poses,
+            seed=args.seed,
+            resolution=args.resolution,
+            log=print,
+        ),
+    )
     board = board or recording.board
     missing = [a for a in arms if not recording.for_arm(a)]
     if missing:
@@ -361,7 +377,6 @@ def _handeye(args: argparse.Namespace) -> int:
 
 def _handeye_wrist(args: argparse.Namespace, rig: RigConfig, start: float) -> int:
     """``handeye --camera <wrist camera>``: eye-in-hand, the board fixed on the table, the camera's arm moving."""
-    from pilworld.calibration.recording import Recording
     from pilworld.calibration.sim_handeye import DEFAULT_BOARD
     from pilworld.calibration.wrist_sim import WristTruth, record_sim_wrist, wrist_arm, wrist_truth_errors
     from pilworld.calibration.wrist_solve import calibrate_wrist
@@ -371,32 +386,21 @@ def _handeye_wrist(args: argparse.Namespace, rig: RigConfig, start: float) -> in
     if args.arm is not None and args.arm != arm:
         raise ValueError(f"--arm {args.arm}: {name} is carried by the {arm} arm (rig config); drop --arm")
     board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
-    if args.from_dir is not None:
-        recording = Recording.load(args.from_dir)
-        source = str(args.from_dir)
-        print(f"{len(recording.views)} recorded views in {args.from_dir}")
-    else:
-        if args.poses < 1:
-            raise ValueError(f"--poses: expected a number of camera poses >= 1, got {args.poses}")
-        print(
-            f"collecting {name} views of a board on the table of the simulated rig {rig.name!r} "
-            f"({args.resolution} px wide)"
-        )
-        try:
-            recording = record_sim_wrist(
-                rig,
-                name,
-                board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
-                poses=args.poses,
-                seed=args.seed,
-                resolution=args.resolution,
-                log=print,
-            )
-        except DegenerateMotionError as exc:
-            raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
-        source = "simulated rig"
-        if args.save is not None:
-            print(f"saved the views to {recording.save(args.save).parent}")
+    recording, source = _recording(
+        args,
+        "camera poses",
+        f"collecting {name} views of a board on the table of the simulated rig {rig.name!r} "
+        f"({args.resolution} px wide)",
+        lambda: record_sim_wrist(
+            rig,
+            name,
+            board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
+            poses=args.poses,
+            seed=args.seed,
+            resolution=args.resolution,
+            log=print,
+        ),
+    )
     board = board or recording.board
     if args.camera_model is not None:
         intrinsics = CameraModel.from_yaml(args.camera_model)
