@@ -129,9 +129,8 @@ class GammaPlus:
         now_masks: dict[str, NDArray[np.bool_]] | None = None
         poses = stride
         if self.lag_steps > 0 and (self.renderer is not None or self.reprojector is not None):
-            before = state if state is not None else previous_state
             chunk_arr = np.asarray(chunk.actions if isinstance(chunk, ActionChunk) else chunk, dtype=np.float64)
-            poses = lagged_poses(chunk_arr, before, self.spec, self.lag_steps)
+            poses = lagged_poses(chunk_arr, state, self.spec, self.lag_steps)
         if self.renderer is not None:
             want_current = self.style.prior and current_robot_masks is None
             q = np.concatenate([np.asarray(state, dtype=np.float64)[None], poses]) if want_current else poses
