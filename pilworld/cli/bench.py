@@ -226,6 +226,21 @@ def register(sub: Any) -> None:
     wm.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     wm.set_defaults(handler=_world_model)
 
+    wl = benches.add_parser(
+        "wm-ladder",
+        help="diagnostic ladder: state contract, autoencoded frames, judge fairness, teacher-forced vs free PSNR",
+    )
+    wl.add_argument("--quick", action="store_true", help="3 tasks × 3 checkpoints × 1 subtask (≤ 5 min on 2 cores)")
+    wl.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 1 quick / 2)")
+    wl.add_argument("--model", type=Path, default=None, help="world-model folder (default: the shipped sim_small)")
+    wl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    wl.add_argument("--rungs", default="", help="comma-separated rungs (default: all four)")
+    wl.add_argument("--out", type=Path, default=None, help="cache folder, resumed (default bench_runs/wm_ladder)")
+    wl.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's own)")
+    wl.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    wl.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    wl.set_defaults(handler=_wm_ladder)
+
 
 def _control_video(args: argparse.Namespace) -> int:
     from pilworld.bench.control_video import run_control_video_bench
@@ -508,6 +523,34 @@ def _world_model(args: argparse.Namespace) -> int:
     )
     if args.json:
         print(json.dumps(result))
+    return 0
+
+
+def _wm_ladder(args: argparse.Namespace) -> int:
+    from pilworld.bench.wm_ladder import DEFAULT_OUT, RUNGS, LadderConfig, run_wm_ladder, summary_lines
+
+    if args.subtasks is not None and args.subtasks < 1:
+        raise ValueError(f"--subtasks: expected at least 1, got {args.subtasks}")
+    if args.threads is not None:
+        if args.threads < 1:
+            raise ValueError(f"--threads: expected at least 1, got {args.threads}")
+        import torch
+
+        torch.set_num_threads(args.threads)
+    rungs = tuple(r.strip() for r in args.rungs.split(",") if r.strip()) or RUNGS
+    cfg = LadderConfig(
+        model=str(args.model) if args.model is not None else "",
+        rig=str(args.rig),
+        quick=args.quick,
+        subtasks=args.subtasks,
+        rungs=rungs,
+        out=str(args.out or DEFAULT_OUT),
+    )
+    r = run_wm_ladder(cfg, progress=not args.no_progress)
+    for line in summary_lines(r):
+        print(line)
+    if args.json:
+        print(json.dumps(r))
     return 0
 
 
