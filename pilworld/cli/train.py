@@ -71,11 +71,72 @@ def register(sub: Any) -> None:
     exp.add_argument("--out", type=Path, required=True, help="destination folder")
     exp.set_defaults(handler=_export)
 
+    comp = stages.add_parser(
+        "composite", help="world model v2: the compositing U-Net over Γ⁺ layers (resumable: rerun to continue)"
+    )
+    comp.add_argument("--data", type=Path, required=True, help="training dataset (pilworld sim collect)")
+    comp.add_argument("--out", type=Path, required=True, help="run folder (created or resumed)")
+    comp.add_argument("--rig", default="configs/rig/sim_dual_ur5e.yaml", help="rig config whose geometry it composites")
+    comp.add_argument("--steps", type=int, default=4000, help="optimiser steps (default 4000; may grow on resume)")
+    comp.add_argument("--batch", type=int, default=32, help="samples (view × frame) per step (default 32)")
+    comp.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (default 2e-3)")
+    comp.add_argument("--width", type=int, default=16, help="U-Net base width (default 16)")
+    comp.add_argument("--work-size", type=int, default=32, help="U-Net resolution (default 32)")
+    comp.add_argument("--cache-size", type=int, default=64, help="training composite resolution (default 64)")
+    comp.add_argument("--max-clips", type=int, default=3000, help="clips in the sample cache (default 3000)")
+    comp.add_argument("--seed", type=int, default=0)
+    comp.add_argument("--checkpoint-every", type=int, default=250)
+    comp.add_argument("--validate-every", type=int, default=500)
+    comp.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's)")
+    comp.set_defaults(handler=_composite)
+
     plot = stages.add_parser("plot", help="the training curve of a run folder as a PNG")
     plot.add_argument("run", type=Path, help="run folder (holds log.jsonl)")
     plot.add_argument("--out", type=Path, required=True, help="PNG file to write")
     plot.add_argument("--title", default=None)
     plot.set_defaults(handler=_plot)
+
+
+def _composite(args: argparse.Namespace) -> int:
+    from pilworld.world_model.composite.train import TrainSettings, train_composite
+
+    for name in (
+        "steps",
+        "batch",
+        "width",
+        "work_size",
+        "cache_size",
+        "max_clips",
+        "checkpoint_every",
+        "validate_every",
+    ):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}")
+    if not (args.data / "meta" / "info.json").is_file():
+        raise ValueError(
+            f"--data: {args.data} is not a dataset (no meta/info.json); record one with pilworld sim collect"
+        )
+    settings = TrainSettings(
+        data=str(args.data),
+        rig=str(args.rig),
+        steps=args.steps,
+        batch=args.batch,
+        lr=args.lr,
+        width=args.width,
+        work_size=args.work_size,
+        cache_size=args.cache_size,
+        seed=args.seed,
+        max_clips=args.max_clips,
+    )
+    out = train_composite(
+        settings,
+        args.out,
+        checkpoint_every=args.checkpoint_every,
+        validate_every=args.validate_every,
+        threads=args.threads,
+    )
+    print(f"wrote {out}")
+    return 0
 
 
 def _plot(args: argparse.Namespace) -> int:

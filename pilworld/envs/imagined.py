@@ -5,7 +5,10 @@ projected with the rig's head camera, drawn from the policy-side state) → the 
 frames of every view from the current frame, the H_h history frames and the instruction → K
 observations. The history memory then takes the generated frames (it starts from the real frames of
 the shared start), and the policy-side state becomes the last stride-aligned action, since actions are
-absolute joint commands the imagined robot is assumed to reach.
+absolute joint commands the imagined robot is assumed to reach — unless the model predicts the state
+itself (``predict_with_state``, world model v2): then the policy sees the state the model says the
+robot will report (a gripper resting on a held cube measures its width, not the closed command).
+Every request carries the current state (``PredictRequest.state``), which geometry-based models need.
 
 Frame times advance by Δ control periods per frame, as the real branch's do.
 
@@ -147,15 +150,28 @@ class ImaginedEnv:
             control=control,
             actions=stride_actions,
             instruction=self._instruction,
+            state=self._obs.state,
         )
         # A different seed per round, fixed per (env seed, round): reruns reproduce the same rollout.
-        frames = self.model.predict(request, steps=self.steps, seed=self.seed * 1000 + self._round)
+        seed = self.seed * 1000 + self._round
+        predict_with_state = getattr(self.model, "predict_with_state", None)
+        if callable(predict_with_state):
+            # A model that predicts the state the robot will report (v2: a gripper resting on what it holds).
+            frames, states = predict_with_state(request, steps=self.steps, seed=seed)
+            states = np.asarray(states, dtype=np.float32)
+            if states.shape != stride_actions.shape or not np.all(np.isfinite(states)):
+                raise EnvError(
+                    f"the world model predicted states of shape {states.shape}, expected {stride_actions.shape}"
+                )
+        else:
+            frames = self.model.predict(request, steps=self.steps, seed=seed)
+            states = stride_actions.astype(np.float32)
         dt = spec.stride / self.control_rate_hz
         t0 = self._obs.timestamp
         observations = tuple(
             Observation(
                 images={v: frames[v][k] for v in self.model.info.views},
-                state=stride_actions[k].astype(np.float32),
+                state=states[k],
                 timestamp=t0 + (k + 1) * dt,
             )
             for k in range(spec.frames)

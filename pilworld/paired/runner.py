@@ -212,6 +212,9 @@ def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel
             raise ValueError(f"adapter: {cfg.adapter!r} is not in {path} (has {names or 'none'})")
         adapter = cfg.adapter
     model: WorldModel = load_world_model(path, adapter=adapter)
+    bind_rig = getattr(model, "bind_rig", None)
+    if callable(bind_rig):  # a model that composites the rig's geometry (v2) uses this rig's calibration
+        bind_rig(rig)
     if not cfg.history:
         without = getattr(model, "without_history", None)
         if without is None:

@@ -68,6 +68,9 @@ class PredictRequest:
     control: NDArray[np.uint8]  # [K, H, W, 3] head-view control video Γ(A)
     actions: NDArray[np.float32]  # [K, action_dim] stride-aligned actions
     instruction: str
+    # [STATE_DIM] the joint state the chunk starts from (measured, or predicted by the model last round);
+    # world models that composite geometry (v2) need it, the others ignore it
+    state: NDArray[np.float32] | None = None
 
     @classmethod
     def build(
@@ -80,6 +83,7 @@ class PredictRequest:
         actions: Any,
         instruction: str,
         history_valid: Sequence[bool] | NDArray[np.bool_] | None = None,
+        state: Any = None,
     ) -> PredictRequest:
         """Validate every input against ``info``; ``history=None`` repeats the current frame (all invalid)."""
         H, W, K, Hh = info.height, info.width, info.future, info.history
@@ -118,7 +122,12 @@ class PredictRequest:
             )
         if not isinstance(instruction, str):
             raise ValueError(f"instruction: expected a string, got {type(instruction).__name__}")
-        return cls(cur, hist, valid, ctrl, act, instruction)
+        st = None
+        if state is not None:
+            st = np.asarray(state, dtype=np.float32)
+            if st.shape != (STATE_DIM,) or not np.all(np.isfinite(st)):
+                raise ValueError(f"state: expected {STATE_DIM} finite joint values, got shape {st.shape}")
+        return cls(cur, hist, valid, ctrl, act, instruction, st)
 
     def to_batch(self, views: Sequence[str]) -> WorldModelBatch:
         def t(x: NDArray[np.uint8]) -> torch.Tensor:  # [..., H, W, 3] -> [..., 3, H, W]
@@ -131,6 +140,7 @@ class PredictRequest:
             control=t(self.control)[None],
             actions=torch.from_numpy(self.actions.copy())[None],
             instruction=[self.instruction],
+            state=None if self.state is None else torch.from_numpy(self.state.copy())[None],
         )
 
 
@@ -145,6 +155,7 @@ class WorldModelBatch:
     actions: torch.Tensor  # float32 [B, K, action_dim]
     instruction: list[str]  # B strings
     future: torch.Tensor | None = None  # uint8 [B, V, K, 3, H, W] ground truth (training and benchmarks)
+    state: torch.Tensor | None = None  # float32 [B, STATE_DIM] joint state at the current frame
 
     @property
     def size(self) -> int:
@@ -159,6 +170,7 @@ class WorldModelBatch:
             self.actions.to(device),
             list(self.instruction),
             None if self.future is None else self.future.to(device),
+            None if self.state is None else self.state.to(device),
         )
 
     def check(self, info: WorldModelInfo) -> None:

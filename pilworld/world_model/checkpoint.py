@@ -80,6 +80,12 @@ def load_world_model(
     folder = Path(path)
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: not a world-model folder (expected {CONFIG_FILE} and {WEIGHTS_FILE})")
+    from pilworld.world_model.composite.checkpoint import is_composite, load_composite
+
+    if is_composite(folder):  # world model v2: one model for every task, no adapters
+        if adapter is not None:
+            raise ValueError(f"adapter: {folder} is a v2 (composite) world model, which has no task adapters")
+        return load_composite(folder)  # type: ignore[return-value]
     model = load_model(folder, device=device)
     if adapter is not None:
         names = adapter_names(folder)

@@ -1,0 +1,248 @@
+"""``CompositeWorldModel``: world model v2 behind the :class:`~pilworld.world_model.base.WorldModel` interface.
+
+One chunk: the candidate layers from geometry (:mod:`.layers`), their low-resolution summary through
+the U-Net (:mod:`.net`) at ``work_size``, then a full-resolution composite — the robot painted from
+its render under the render's exact mask, everything else a per-pixel blend of the sharp candidate
+layers by the (upsampled) gates. Deterministic: one pass, no sampling steps, and no averaging of
+futures where the layers are sharp — a gate picks a layer, it does not blur two.
+
+It also predicts the state the robot will report (:meth:`predict_with_state`): the arms at the
+lagged commands, each gripper at the opening it will measure (resting on an object, not at the
+command), which is what the policy and the judges read.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+from torch import nn
+from torch.nn import functional as F
+
+from pilworld.config.rig import RigConfig
+from pilworld.types import DEFAULT_VIEWS, ChunkSpec
+from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo
+from pilworld.world_model.composite.cache import DEPTH_SCALE, GRIPS
+from pilworld.world_model.composite.layers import ChunkLayers, LayerBuilder
+from pilworld.world_model.composite.net import N_VIEWS, CompositeUNet, RobotPainter
+
+REPO_ROOT = Path(__file__).resolve().parents[3]
+
+
+@dataclass(frozen=True)
+class CompositeConfig:
+    """Sizes of world model v2 and the rig whose geometry it composites."""
+
+    rig: str = "configs/rig/sim_dual_ur5e.yaml"  # relative paths resolve against the repository root
+    views: tuple[str, ...] = DEFAULT_VIEWS
+    image_size: int = 128
+    work_size: int = 32  # the U-Net's resolution; the composite is at image_size (training: at the cache's)
+    width: int = 16
+    future: int = 15
+    history: int = 5  # accepted (the interface's H_h) but unused: the layers need only the current frame
+
+    def __post_init__(self) -> None:
+        if self.image_size % self.work_size or self.work_size % 4:
+            raise ValueError(
+                f"work_size: {self.work_size} must divide image_size {self.image_size} and be a multiple of 4"
+            )
+        if len(self.views) != N_VIEWS:
+            raise ValueError(f"views: expected {N_VIEWS} camera keys, got {self.views!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["views"] = list(self.views)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> CompositeConfig:
+        known = {f for f in cls.__dataclass_fields__}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"composite config: unknown keys {unknown}")
+        return cls(**{**d, "views": tuple(d.get("views", DEFAULT_VIEWS))})
+
+    def rig_path(self) -> Path:
+        p = Path(self.rig)
+        return p if p.is_absolute() else REPO_ROOT / p
+
+
+# Base channel layout (see cache.base_channels): prior 0-2, prior valid 3, current 4-6, carry L 7-9, valid 10,
+# carry R 11-13, valid 14, part one-hot 15-18 (L arm, L fingers, R arm, R fingers), shade 19, depth 20.
+_PARTS, _SHADE, _DEPTH = slice(15, 19), slice(19, 20), slice(20, 21)
+
+
+def net_inputs(base: torch.Tensor, scal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Base channels (N, 21, h, w) uint8 + scalars (N, 8) → network input (N, 31, h, w), commanded grips (N, 2)."""
+    x = base.float() / 255.0 if base.dtype == torch.uint8 else base / 255.0
+    n, _, h, w = x.shape
+    view = F.one_hot(scal[:, 5].long(), N_VIEWS).float()
+    grips = scal[:, 6:8]
+    planes = torch.cat([scal[:, :5], view, grips], 1)[:, :, None, None].expand(n, -1, h, w)
+    return torch.cat([x, planes], 1), grips
+
+
+def candidates(x: torch.Tensor, generated: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Base channels in [0, 1] → (N, 5, 3, h, w) candidate images and (N, 5, h, w) validity (CANDIDATES order)."""
+    one = torch.ones_like(x[:, 3])
+    cands = torch.stack([x[:, 0:3], x[:, 4:7], x[:, 7:10], x[:, 11:14], generated], 1)
+    valid = torch.stack([(x[:, 3] > 0.5).float(), one, (x[:, 10] > 0.5).float(), (x[:, 14] > 0.5).float(), one], 1)
+    return cands, valid
+
+
+def blend(
+    x: torch.Tensor,
+    scal: torch.Tensor,
+    gates: torch.Tensor,
+    generated: torch.Tensor,
+    painter: RobotPainter,
+) -> torch.Tensor:
+    """The composite at the resolution of the base channels ``x`` (in [0, 1]); gates/generated are resized to it."""
+    h, w = x.shape[-2:]
+    if gates.shape[-1] != w:  # the gates choose between full-resolution layers
+        gates = F.interpolate(gates, size=(h, w), mode="bilinear", align_corners=False)
+        generated = F.interpolate(generated, size=(h, w), mode="bilinear", align_corners=False)
+    cands, valid = candidates(x, generated)
+    logits = gates.masked_fill(valid < 0.5, -1e4)
+    weights = torch.softmax(logits, 1)
+    scene = (weights[:, :, None] * cands).sum(1)
+    parts = x[:, _PARTS]
+    robot = painter(parts, x[:, _SHADE], x[:, _DEPTH], scal[:, 5])
+    mask = parts.sum(1, keepdim=True).clamp(0, 1)
+    out: torch.Tensor = mask * robot + (1 - mask) * scene
+    return out
+
+
+class CompositeWorldModel(nn.Module):
+    """World model v2; see the module docstring. ``bind_rig`` swaps in a (re)calibrated rig's geometry."""
+
+    def __init__(self, config: CompositeConfig, rig: RigConfig | None = None) -> None:
+        super().__init__()
+        self.config = config
+        self.net = CompositeUNet(config.width, config.work_size)
+        self.painter = RobotPainter()
+        self._rig = rig
+        self._builder: LayerBuilder | None = None
+
+    @property
+    def info(self) -> WorldModelInfo:
+        c = self.config
+        return WorldModelInfo(
+            views=c.views, height=c.image_size, width=c.image_size, future=c.future, history=c.history
+        )
+
+    def bind_rig(self, rig: RigConfig) -> None:
+        """Composite with ``rig``'s robot model and cameras (default: the rig the model was trained on)."""
+        if (rig.image_size.width, rig.image_size.height) != (self.config.image_size, self.config.image_size):
+            raise ValueError(
+                f"rig {rig.name!r}: image size {rig.image_size} differs from the model's {self.config.image_size}"
+            )
+        self._rig = rig
+        self._builder = None
+
+    @property
+    def builder(self) -> LayerBuilder:
+        if self._builder is None:
+            rig = self._rig or RigConfig.load(self.config.rig_path())
+            self._builder = LayerBuilder(rig, ChunkSpec(frames=self.config.future))
+        return self._builder
+
+    # ------------------------------------------------------------------ inference
+
+    def base_full(
+        self, layers: ChunkLayers, current: dict[str, NDArray[np.uint8]]
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Full-resolution base channels (V·K, 21, H, W) uint8 and scalars (V·K, 8) of one chunk."""
+        K = layers.poses.shape[0]
+        rows, scal = [], []
+        for vi, v in enumerate(self.config.views):
+            parts = layers.parts[v]
+            chans = np.concatenate(
+                [
+                    layers.prior[v].transpose(0, 3, 1, 2),
+                    (layers.prior_valid[v] * np.uint8(255))[:, None].astype(np.uint8),
+                    np.broadcast_to(np.asarray(current[v]).transpose(2, 0, 1)[None], (K, 3, *parts.shape[1:])),
+                    layers.carry["left"][v].transpose(0, 3, 1, 2),
+                    (layers.carry_valid["left"][v] * np.uint8(255))[:, None].astype(np.uint8),
+                    layers.carry["right"][v].transpose(0, 3, 1, 2),
+                    (layers.carry_valid["right"][v] * np.uint8(255))[:, None].astype(np.uint8),
+                    np.stack([(parts == p) * np.uint8(255) for p in (1, 2, 3, 4)], 1).astype(np.uint8),
+                    layers.shade[v][:, None],
+                    np.clip(layers.depth[v] / DEPTH_SCALE * 255, 0, 255).astype(np.uint8)[:, None],
+                ],
+                1,
+            )
+            rows.append(chans)
+            for k in range(K):
+                scal.append(
+                    [
+                        *layers.holding[k],
+                        *layers.released[k],
+                        (k + 1) / K,
+                        vi,
+                        layers.poses[k, GRIPS[0]],
+                        layers.poses[k, GRIPS[1]],
+                    ]
+                )
+        return torch.from_numpy(np.concatenate(rows, 0)), torch.tensor(scal, dtype=torch.float32)
+
+    @torch.no_grad()
+    def predict_with_state(
+        self, request: PredictRequest, *, steps: int | None = None, seed: int = 0
+    ) -> tuple[dict[str, NDArray[np.uint8]], NDArray[np.float32]]:
+        """One chunk: view → uint8 (K, H, W, 3), and the (K, 14) state the robot will report."""
+        if request.state is None:
+            raise ValueError("state: world model v2 needs the current joint state (PredictRequest.build(..., state=))")
+        layers = self.builder(dict(request.current), request.state, request.actions)
+        base, scal = self.base_full(layers, dict(request.current))
+        x = base.float() / 255.0
+        s = self.config.work_size
+        small = F.adaptive_avg_pool2d(base.float(), s)  # the network's input, as in training (area-averaged)
+        inp, cmd = net_inputs(small, scal)
+        gates, generated, grips = self.net(inp, cmd)
+        out = blend(x, scal, gates, generated, self.painter)
+        frames = (out.clamp(0, 1) * 255.0).round().to(torch.uint8).permute(0, 2, 3, 1).numpy()
+        K = self.config.future
+        by_view = {v: frames[i * K : (i + 1) * K] for i, v in enumerate(self.config.views)}
+        states = layers.poses.astype(np.float32).copy()
+        # Each gripper's opening from its own wrist view's prediction (it sees the fingers and what they hold).
+        g = grips.clamp(0, 1).numpy().reshape(len(self.config.views), K, 2)
+        for side, grip_index in zip((0, 1), GRIPS, strict=True):
+            view_index = 1 + side if len(self.config.views) > 2 else 0
+            states[:, grip_index] = g[view_index, :, side]
+        return by_view, states
+
+    def predict(
+        self, request: PredictRequest, *, steps: int | None = None, seed: int = 0
+    ) -> dict[str, NDArray[np.uint8]]:
+        return self.predict_with_state(request, steps=steps, seed=seed)[0]
+
+    def predict_batch(self, batch: WorldModelBatch, *, steps: int | None = None, seed: int = 0) -> torch.Tensor:
+        """uint8 [B, V, K, 3, H, W]; the batch must carry ``state`` (the current joint state of each sample)."""
+        batch.check(self.info)
+        if batch.state is None:
+            raise ValueError("state: world model v2 needs the current joint state of every sample (batch.state)")
+        outs = []
+        for b in range(batch.size):
+            req = PredictRequest.build(
+                self.info,
+                current={v: batch.current[b, i].permute(1, 2, 0).numpy() for i, v in enumerate(self.config.views)},
+                history=None,
+                control=batch.control[b].permute(0, 2, 3, 1).numpy(),
+                actions=batch.actions[b].numpy(),
+                instruction=batch.instruction[b],
+                state=batch.state[b].numpy(),
+            )
+            frames = self.predict(req, seed=seed)
+            outs.append(torch.stack([torch.from_numpy(frames[v]).permute(0, 3, 1, 2) for v in self.config.views]))
+        return torch.stack(outs)
+
+    def train_forward(self, base: torch.Tensor, scal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Training: cached base channels at ``work_size`` → (composite (N, 3, h, w), grips (N, 2))."""
+        inp, cmd = net_inputs(base, scal)
+        gates, generated, grips = self.net(inp, cmd)
+        return blend(base.float() / 255.0, scal, gates, generated, self.painter), grips
