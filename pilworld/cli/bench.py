@@ -235,6 +235,9 @@ def register(sub: Any) -> None:
     wl.add_argument("--model", type=Path, default=None, help="world-model folder (default: the shipped sim_small)")
     wl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     wl.add_argument("--rungs", default="", help="comma-separated rungs (default: all four)")
+    wl.add_argument("--tasks", default="all", help="comma-separated tasks (default all three)")
+    wl.add_argument("--checkpoints", default="", help="comma-separated scripted checkpoints (default: 3 quick / all 5)")
+    wl.add_argument("--rounds", type=int, default=None, help="closed-loop rounds per subtask (default 5)")
     wl.add_argument("--out", type=Path, default=None, help="cache folder, resumed (default bench_runs/wm_ladder)")
     wl.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's own)")
     wl.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
@@ -527,7 +530,7 @@ def _world_model(args: argparse.Namespace) -> int:
 
 
 def _wm_ladder(args: argparse.Namespace) -> int:
-    from pilworld.bench.wm_ladder import DEFAULT_OUT, RUNGS, LadderConfig, run_wm_ladder, summary_lines
+    from pilworld.bench.wm_ladder import DEFAULT_OUT, RUNGS, TASKS, LadderConfig, run_wm_ladder, summary_lines
 
     if args.subtasks is not None and args.subtasks < 1:
         raise ValueError(f"--subtasks: expected at least 1, got {args.subtasks}")
@@ -537,13 +540,21 @@ def _wm_ladder(args: argparse.Namespace) -> int:
         import torch
 
         torch.set_num_threads(args.threads)
-    rungs = tuple(r.strip() for r in args.rungs.split(",") if r.strip()) or RUNGS
+    if args.rounds is not None and args.rounds < 1:
+        raise ValueError(f"--rounds: expected at least 1, got {args.rounds}")
+
+    def names(value: str) -> tuple[str, ...]:
+        return tuple(v.strip() for v in value.split(",") if v.strip())
+
     cfg = LadderConfig(
         model=str(args.model) if args.model is not None else "",
         rig=str(args.rig),
         quick=args.quick,
         subtasks=args.subtasks,
-        rungs=rungs,
+        tasks=TASKS if args.tasks.strip() == "all" else names(args.tasks),
+        checkpoints=names(args.checkpoints) or None,
+        rungs=names(args.rungs) or RUNGS,
+        spec=ChunkSpec() if args.rounds is None else ChunkSpec(rounds=args.rounds),
         out=str(args.out or DEFAULT_OUT),
     )
     r = run_wm_ladder(cfg, progress=not args.no_progress)
