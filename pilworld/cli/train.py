@@ -88,6 +88,9 @@ def register(sub: Any) -> None:
     comp.add_argument("--checkpoint-every", type=int, default=250)
     comp.add_argument("--validate-every", type=int, default=500)
     comp.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's)")
+    comp.add_argument(
+        "--stop-after", type=int, default=None, help="checkpoint and exit after this many steps (rerun to continue)"
+    )
     comp.set_defaults(handler=_composite)
 
     plot = stages.add_parser("plot", help="the training curve of a run folder as a PNG")
@@ -134,8 +137,9 @@ def _composite(args: argparse.Namespace) -> int:
         checkpoint_every=args.checkpoint_every,
         validate_every=args.validate_every,
         threads=args.threads,
+        stop_after=args.stop_after,
     )
-    print(f"wrote {out}")
+    print(f"wrote {out}" if out is not None else f"stopped after step {args.stop_after}; rerun to continue")
     return 0
 
 

@@ -35,8 +35,7 @@ class CacheSpec:
     rig: str
     size: int = 64  # working resolution
     frames_per_clip: int = 5  # future frames kept per clip and view
-    clip_every: int = 2  # every n-th clip of the dataset's index (window 3)
-    max_clips: int = 3000
+    max_clips: int = 3000  # clips drawn (without replacement, seeded) from the dataset's index (window 3)
     seed: int = 0
 
 
@@ -153,8 +152,8 @@ def build_cache(spec: CacheSpec, out: str | Path, *, rig: Any = None, workers: i
             return root
     root.mkdir(parents=True, exist_ok=True)
     ds = _clip_dataset(spec.data)
-    clips = np.arange(0, len(ds), spec.clip_every)[: spec.max_clips]
     rng = np.random.default_rng(spec.seed)
+    clips = np.sort(rng.choice(len(ds), min(spec.max_clips, len(ds)), replace=False))
     K = ds.spec.future
     jobs = [
         (r, int(c), sorted(rng.choice(K, spec.frames_per_clip, replace=False).tolist())) for r, c in enumerate(clips)

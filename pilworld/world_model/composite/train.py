@@ -151,12 +151,15 @@ def train_composite(
     checkpoint_every: int = 250,
     validate_every: int = 500,
     val_samples: int = 1024,
+    log_every: int = 50,
     threads: int | None = None,
     progress: bool = True,
     rig: Any = None,
-) -> Path:
+    stop_after: int | None = None,
+) -> Path | None:
     """Train (or resume) world model v2 into ``out``; returns ``out/model``. ``rig``: a loaded RigConfig
-    to use instead of loading ``settings.rig`` (tests use small images)."""
+    to use instead of loading ``settings.rig`` (tests use small images). ``stop_after``: checkpoint and
+    return None after that many steps of the schedule (a run split across sessions; rerun to continue)."""
     from pilworld.config.rig import RigConfig
     from pilworld.world_model.composite.checkpoint import save_composite
 
@@ -177,13 +180,7 @@ def train_composite(
     settings_path.write_text(json.dumps(want, indent=2))
     cache = build_cache(
         CacheSpec(
-            settings.data,
-            settings.rig,
-            settings.cache_size,
-            settings.frames_per_clip,
-            2,
-            settings.max_clips,
-            settings.seed,
+            settings.data, settings.rig, settings.cache_size, settings.frames_per_clip, settings.max_clips, settings.seed
         ),
         root / "cache",
         rig=rig,
@@ -232,7 +229,7 @@ def train_composite(
         bar.update(1)
         bar.set_postfix(l1=f"{terms['l1']:.4f}", grip=f"{terms['grip_l1']:.3f}")
         done = step + 1
-        if done % 50 == 0:
+        if done % log_every == 0:
             log.write(
                 json.dumps({"step": done, "lr": lr, **terms, "elapsed_s": round(time.monotonic() - t0, 1)}) + "\n"
             )
@@ -249,8 +246,12 @@ def train_composite(
             log.write(json.dumps({"step": done, "validation": val}) + "\n")
             log.flush()
             bar.write(f"step {done}: validation {json.dumps({k: round(v, 3) for k, v in val.items()})}")
-        if done % checkpoint_every == 0 or done == settings.steps:
+        if done % checkpoint_every == 0 or done == settings.steps or done == stop_after:
             save_checkpoint(ckpts, PHASE, done, model, opt, names, ema, {"settings": want})
+        if done == stop_after and done < settings.steps:
+            bar.close()
+            log.close()
+            return None
     bar.close()
     log.close()
     with torch.no_grad():

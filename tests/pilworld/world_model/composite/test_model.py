@@ -1,0 +1,161 @@
+"""World model v2 behind the WorldModel interface: shapes, state, exact robot pixels, checkpoints, the env."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from hw_drivers.sim.poses import HOME_Q14
+from pilworld.config.rig import RigConfig
+from pilworld.control_video.gamma import ControlVideo
+from pilworld.envs import ImaginedEnv
+from pilworld.types import ARM_LAYOUT, ChunkSpec, Observation, Start, Subtask
+from pilworld.world_model.base import PredictRequest
+from pilworld.world_model.checkpoint import load_world_model
+from pilworld.world_model.composite.checkpoint import is_composite, load_composite, save_composite
+from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
+
+SPEC = ChunkSpec()
+LEFT_ARM, LEFT_GRIP = ARM_LAYOUT["left"]
+
+
+@pytest.fixture
+def model(rig32: RigConfig) -> CompositeWorldModel:
+    torch.manual_seed(0)
+    m = CompositeWorldModel(CompositeConfig(image_size=32, work_size=8), rig32)
+    return m.eval()
+
+
+def _request(model: CompositeWorldModel, state: np.ndarray | None = None) -> PredictRequest:
+    rng = np.random.default_rng(0)
+    q = HOME_Q14.astype(np.float64).copy() if state is None else state
+    stride = np.repeat(q[None], SPEC.frames, 0)
+    stride[:, LEFT_ARM.start] += np.linspace(0.0, -0.4, SPEC.frames)
+    return PredictRequest.build(
+        model.info,
+        current={v: rng.integers(0, 255, (32, 32, 3), dtype=np.uint8) for v in model.info.views},
+        history=None,
+        control=np.zeros((SPEC.frames, 32, 32, 3), np.uint8),
+        actions=stride,
+        instruction="sort the cubes.",
+        state=q,
+    )
+
+
+def test_predict_with_state_shapes_and_arm_state(model: CompositeWorldModel) -> None:
+    req = _request(model)
+    frames, states = model.predict_with_state(req)
+    assert set(frames) == set(model.info.views)
+    for f in frames.values():
+        assert f.shape == (SPEC.frames, 32, 32, 3) and f.dtype == np.uint8
+    assert states.shape == (SPEC.frames, 14) and np.all(np.isfinite(states))
+    layers = model.builder(dict(req.current), req.state, req.actions)  # type: ignore[arg-type]
+    arms = [i for i in range(14) if i not in (ARM_LAYOUT["left"][1], ARM_LAYOUT["right"][1])]
+    np.testing.assert_allclose(states[:, arms], layers.poses[:, arms], atol=1e-6)  # the lagged commands
+    assert np.all((states[:, [6, 13]] >= 0) & (states[:, [6, 13]] <= 1))
+    np.testing.assert_array_equal(model.predict(req)["cam_high"], frames["cam_high"])  # deterministic
+
+
+def test_robot_pixels_come_from_the_painter(model: CompositeWorldModel) -> None:
+    req = _request(model)
+    layers = model.builder(dict(req.current), req.state, req.actions)  # type: ignore[arg-type]
+    with torch.no_grad():
+        for p in model.painter.net[-1].parameters():
+            p.zero_()
+        model.painter.net[-1].bias.fill_(10.0)  # type: ignore[union-attr]  # paints white
+    frames = model.predict(req)
+    on = layers.parts["cam_high"] > 0
+    assert on.any()
+    assert (frames["cam_high"][on] == 255).all()
+
+
+def test_a_confident_prior_gate_copies_the_static_scene(model: CompositeWorldModel) -> None:
+    req = _request(model)
+    layers = model.builder(dict(req.current), req.state, req.actions)  # type: ignore[arg-type]
+    with torch.no_grad():
+        model.net.head.weight.zero_()
+        model.net.head.bias.zero_()  # type: ignore[union-attr]
+        model.net.head.bias[0] = 50.0  # type: ignore[index]
+    frames = model.predict(req)
+    v = "cam_high"
+    keep = layers.prior_valid[v] & (layers.parts[v] == 0)
+    assert keep.any()
+    diff = np.abs(frames[v].astype(int) - layers.prior[v].astype(int))[keep]
+    assert diff.max() <= 1
+
+
+def test_the_state_is_required(model: CompositeWorldModel) -> None:
+    req = _request(model)
+    bare = PredictRequest(req.current, req.history, req.history_valid, req.control, req.actions, req.instruction)
+    with pytest.raises(ValueError, match="state"):
+        model.predict_with_state(bare)
+    with pytest.raises(ValueError, match="state"):
+        PredictRequest.build(
+            model.info,
+            current=dict(req.current),
+            history=None,
+            control=req.control,
+            actions=req.actions,
+            instruction="x",
+            state=np.full(14, np.nan),
+        )
+
+
+def test_checkpoint_round_trip(model: CompositeWorldModel, tmp_path: Path, rig32: RigConfig) -> None:
+    folder = save_composite(model, tmp_path / "v2")
+    assert is_composite(folder)
+    again = load_world_model(folder)
+    assert isinstance(again, CompositeWorldModel)
+    again.bind_rig(rig32)
+    req = _request(model)
+    np.testing.assert_array_equal(again.predict(req)["cam_left_wrist"], model.predict(req)["cam_left_wrist"])
+    with pytest.raises(ValueError, match="adapter"):
+        load_world_model(folder, adapter="sort_cubes")
+    with pytest.raises(ValueError, match="image size"):
+        again.bind_rig(RigConfig.model_validate({**rig32.model_dump(), "image_size": {"width": 64, "height": 64}}))
+    assert isinstance(load_composite(folder), CompositeWorldModel)
+
+
+class _StateModel:
+    """A model that predicts a state of its own: the env must hand it to the policy."""
+
+    def __init__(self, inner: CompositeWorldModel) -> None:
+        self.inner = inner
+        self.seen_state: np.ndarray | None = None
+
+    @property
+    def info(self):  # type: ignore[no-untyped-def]
+        return self.inner.info
+
+    def predict_with_state(self, request: PredictRequest, *, steps: int | None = None, seed: int = 0):  # type: ignore[no-untyped-def]
+        self.seen_state = request.state
+        frames, states = self.inner.predict_with_state(request)
+        states[:, LEFT_GRIP] = 0.42
+        return frames, states
+
+    def predict(self, request, *, steps=None, seed=0):  # type: ignore[no-untyped-def]
+        raise AssertionError("the env must prefer predict_with_state")
+
+    def predict_batch(self, batch, *, steps=None, seed=0):  # type: ignore[no-untyped-def]
+        raise AssertionError("unused")
+
+
+def test_the_imagined_branch_reports_the_predicted_state(model: CompositeWorldModel, rig32: RigConfig) -> None:
+    wrapped = _StateModel(model)
+    env = ImaginedEnv(wrapped, ControlVideo.from_rig(rig32, SPEC), SPEC)  # type: ignore[arg-type]
+    q = HOME_Q14.astype(np.float32)
+    rng = np.random.default_rng(3)
+    obs = Observation(
+        images={v: rng.integers(0, 255, (32, 32, 3), dtype=np.uint8) for v in model.info.views}, state=q, timestamp=0.0
+    )
+    env.reset(Start(Subtask("sort_cubes", 0, "sort the cubes."), obs))
+    chunk = np.repeat(q[None], 50, 0)
+    seg = env.step(chunk)
+    assert wrapped.seen_state is not None
+    np.testing.assert_array_equal(wrapped.seen_state, q)
+    assert all(o.state[LEFT_GRIP] == pytest.approx(0.42) for o in seg.observations)
+    env.step(chunk)
+    assert wrapped.seen_state[LEFT_GRIP] == pytest.approx(0.42)  # the next round starts from it
