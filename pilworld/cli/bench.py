@@ -226,6 +226,20 @@ def register(sub: Any) -> None:
     wm.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     wm.set_defaults(handler=_world_model)
 
+    cl = benches.add_parser(
+        "chunk-latency", help="one imagined round (control video + prediction + state) per world model, round-robin"
+    )
+    cl.add_argument(
+        "--models",
+        default="",
+        help="NAME=FOLDER,... (default: v1 = the paper-style sim_small, v2 = the shipped default); ratios to the first",
+    )
+    cl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    cl.add_argument("--task", default="sort_cubes", help="task of the start and of the adapter (default sort_cubes)")
+    cl.add_argument("--repeats", type=int, default=20, help="timed rounds per model; the median is reported")
+    cl.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    cl.set_defaults(handler=_chunk_latency)
+
     wl = benches.add_parser(
         "wm-ladder",
         help="diagnostic ladder: state contract, autoencoded frames, judge fairness, teacher-forced vs free PSNR",
@@ -438,6 +452,19 @@ def _calibration(args: argparse.Namespace) -> int:
     print(f"chart: {r['chart']}")
     if args.json:
         print(json.dumps(r))
+    return 0
+
+
+def _chunk_latency(args: argparse.Namespace) -> int:
+    from pilworld.bench.chunk_latency import parse_models, run_chunk_latency
+    from pilworld.world_model import DEFAULT_CHECKPOINT, V1_CHECKPOINT
+
+    text = args.models or f"v1={V1_CHECKPOINT},v2={DEFAULT_CHECKPOINT}"
+    result = run_chunk_latency(parse_models(text), rig=args.rig, task=args.task, repeats=args.repeats)
+    for name, m in result["models"].items():
+        print(f"{name:>12}: median {m['median_ms']:.1f} ms, p90 {m['p90_ms']:.1f} ms, ×{m['ratio_to_first']:.2f}")
+    if args.json:
+        print(json.dumps(result))
     return 0
 
 

@@ -1,0 +1,105 @@
+"""``pilworld bench chunk-latency``: one imagined round's wall time for several world models, in one run.
+
+A round of the imagined branch is what a user waits for: the control video of the chunk (Γ, plus
+whatever else the model computes from geometry — world model v2's Γ⁺ layers), the prediction of K
+frames of every view, and the state. This bench times exactly that, ``ImaginedEnv.step(chunk)`` at
+batch 1 with each model's default steps, from one simulated start and one scripted chunk. Models are
+timed round-robin (one call of each in turn), so a machine that slows down mid-run slows all of them
+alike, and the ratios to the first model are the figures to compare across machines (which differ
+by up to 2× in absolute speed).
+"""
+
+from __future__ import annotations
+
+import platform
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pilworld.types import ChunkSpec
+
+START_SEED = 8_500_000  # a layout no training or other bench uses
+
+
+def parse_models(text: str) -> dict[str, str]:
+    """``"v1=PATH,v2=PATH"`` (or bare paths, named by their folder) → name → folder."""
+    out: dict[str, str] = {}
+    for item in (t.strip() for t in text.split(",")):
+        if not item:
+            continue
+        name, _, path = item.partition("=") if "=" in item else (Path(item).name, "", item)
+        if not (Path(path) / "config.json").is_file():
+            raise ValueError(f"--models: {path!r} ({name}) is not a world-model folder (no config.json)")
+        if name in out:
+            raise ValueError(f"--models: the name {name!r} is listed twice")
+        out[name] = path
+    if not out:
+        raise ValueError("--models: expected at least one NAME=PATH")
+    return out
+
+
+def run_chunk_latency(
+    models: dict[str, str], *, rig: str | Path, task: str = "sort_cubes", repeats: int = 20, warmup: int = 2
+) -> dict[str, Any]:
+    from hw_drivers.safety import SafetyFilter
+    from hw_drivers.sim.robot import SimRobot
+    from pilworld.config.rig import RigConfig
+    from pilworld.control_video.gamma import ControlVideo
+    from pilworld.envs import ImaginedEnv
+    from pilworld.policies.registry import make_policy
+    from pilworld.types import Subtask
+    from pilworld.world_model.checkpoint import adapter_names, load_world_model
+
+    if repeats < 1:
+        raise ValueError(f"--repeats: expected at least 1, got {repeats}")
+    spec = ChunkSpec()
+    rig_cfg = RigConfig.load(rig)
+    robot = SimRobot(rig, task)
+    robot.connect()
+    try:
+        start = robot.reset(seed=START_SEED, subtask=0, task=task, history=spec.history, stride=spec.stride)
+        spec_robot = robot.spec
+    finally:
+        robot.disconnect()
+    policy = make_policy("scripted_step_30k", rig_cfg, spec)
+    policy.reset(seed=START_SEED)
+    sub: Subtask = start.subtask
+    chunk = policy.infer(start.observation, sub.instruction)
+    envs = {}
+    for name, path in models.items():
+        adapter = task if task in adapter_names(path) else None
+        model = load_world_model(path, adapter=adapter)
+        bind = getattr(model, "bind_rig", None)
+        if callable(bind):
+            bind(rig_cfg)
+        env = ImaginedEnv(model, ControlVideo.from_rig(rig_cfg, spec), spec, safety=SafetyFilter(spec_robot))
+        envs[name] = env
+    times: dict[str, list[float]] = {n: [] for n in envs}
+    for i in range(warmup + repeats):
+        for name, env in envs.items():
+            env.reset(start)
+            t0 = time.perf_counter()
+            env.step(chunk)
+            dt = time.perf_counter() - t0
+            if i >= warmup:
+                times[name].append(dt * 1000.0)
+    first = next(iter(times))
+    med = {n: float(np.median(t)) for n, t in times.items()}
+    return {
+        "bench": "chunk-latency",
+        "machine": f"{platform.machine()}, {__import__('os').cpu_count()} CPUs, {platform.python_version()}",
+        "task": task,
+        "repeats": repeats,
+        "models": {
+            n: {
+                "path": models[n],
+                "median_ms": round(med[n], 1),
+                "p90_ms": round(float(np.percentile(times[n], 90)), 1),
+                "ratio_to_first": round(med[n] / med[first], 3),
+            }
+            for n in times
+        },
+        "reference": first,
+    }
