@@ -71,8 +71,18 @@ def standard_variants() -> list[ModelVariant]:
     thing of the shipped model: its history memory hidden at inference, or its stage-2 task adapters
     fine-tuned on successes only (the paper's stage 2 uses successes and failures).
     """
+    from pilworld.world_model import V1_CHECKPOINT
+
+    v1 = str(V1_CHECKPOINT)
     return [
-        ModelVariant("pilworld", "PiL-World (shipped, 9k steps, task adapters)", role="shipped"),
+        ModelVariant("pilworld", "PiL-World v2 (shipped: Γ⁺ composite, predicted state)", role="shipped"),
+        ModelVariant(
+            "pilworld_v1",
+            "PiL-World v1 (paper-style: marker Γ, 8× latent, 9k steps, task adapters)",
+            v1,
+            role="reference",
+            note="the model shipped before issue #21 (pilworld/world_model/weights/sim_small)",
+        ),
         ModelVariant(
             "ctrl_world",
             "Ctrl-World-style (action tokens, no control video, 3.5k)",
@@ -89,10 +99,11 @@ def standard_variants() -> list[ModelVariant]:
         ),
         ModelVariant(
             "no_history",
-            "− history (shipped, memory hidden)",
+            "− history (v1, memory hidden)",
+            v1,
             history=False,
             role="ablation",
-            note="inference-time: the shipped weights with the latent history memory masked",
+            note="inference-time: v1's weights with the latent history memory masked (v2 has no history memory)",
         ),
         ModelVariant(
             "success_only",
@@ -201,11 +212,13 @@ def evaluate_variants(
     workers: int | None = None,
     progress: bool = True,
     single_step: bool = True,
+    real_from: str | Path | None = None,
 ) -> dict[str, dict[str, Any]]:
     """Every variant on the protocol's pairs, the real branches run once (by the first variant).
 
     ``workers``: judging processes of the first variant, then processes running the other variants side
-    by side (default: one per CPU).
+    by side (default: one per CPU). ``real_from``: a run folder of the same protocol whose real branches
+    every variant copies, the first one included (e.g. a run made while a model was still training).
     """
     if not variants:
         raise ValueError("variants: expected at least one")
@@ -219,14 +232,14 @@ def evaluate_variants(
     first, rest = variants[0], list(variants[1:])
     if progress:
         print(f"[{first.name}] {first.label}: {protocol.pairs} pairs (its real branches are shared)", flush=True)
-    reference = root / first.name
+    reference = Path(real_from) if real_from is not None else root / first.name
     results = {
         first.name: run_variant(
             first,
             protocol,
-            reference,
+            root / first.name,
             rig=rig,
-            real_from=None,
+            real_from=None if real_from is None or reference == root / first.name else reference,
             workers=workers,
             progress=progress,
             single_step=single_step,

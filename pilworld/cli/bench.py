@@ -136,6 +136,9 @@ def register(sub: Any) -> None:
     pt.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 3 / 20)")
     pt.add_argument("--seed", type=int, default=None, help="first layout seed (default 6000000)")
     pt.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    pt.add_argument(
+        "--real-from", type=Path, default=None, help="copy every variant's real branches from this run folder"
+    )
     pt.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/paired.png)")
     pt.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     pt.set_defaults(handler=_paired)
@@ -644,6 +647,7 @@ def _paired(args: argparse.Namespace) -> int:
         seed=args.seed,
         workers=args.workers,
         progress=not args.json,
+        real_from=args.real_from,
     )
     chart = paired_table_chart(r["variants"], r["targets"], args.chart or Path(out) / "paired.png")
     r["chart"] = str(chart)

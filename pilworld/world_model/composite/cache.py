@@ -27,6 +27,7 @@ BASE_CHANNELS = 21  # prior 3 + valid 1, current 3, carry L 3 + 1, carry R 3 + 1
 SCALARS = 8  # holding L/R, released L/R, k/K, view index, commanded grips L/R
 DEPTH_SCALE = 2.0  # metres mapped to 255
 GRIPS = [ARM_LAYOUT["left"][1], ARM_LAYOUT["right"][1]]
+LAYERS_VERSION = 2  # bump when pilworld.world_model.composite.layers changes what it computes
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,7 @@ class CacheSpec:
     frames_per_clip: int = 5  # future frames kept per clip and view
     max_clips: int = 3000  # clips drawn (without replacement, seeded) from the dataset's index (window 3)
     seed: int = 0
+    layers_version: int = LAYERS_VERSION  # a cache made by other layer code is refused, not silently reused
 
 
 def base_channels(layers: Any, view: str, k: int, current: NDArray[np.uint8], size: int) -> NDArray[np.uint8]:

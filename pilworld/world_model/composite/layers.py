@@ -99,6 +99,14 @@ class LayerBuilder:
         if state.shape != (STATE_DIM,) or stride.ndim != 2 or stride.shape[1] != STATE_DIM:
             raise ValueError(f"layers: expected state (14,) and actions (K, 14), got {state.shape} and {stride.shape}")
         chunk = steps_from_stride(stride, state, self.spec)
+        for side in SIDES:
+            # Fingers already resting on something stay at that opening until the gripper opens: the render
+            # must not close them through what they hold (the command says 0, the object says its width).
+            grip_index = ARM_LAYOUT[side][1]
+            if state[grip_index] < HOLD_MAX:
+                opened = np.flatnonzero(chunk[:, grip_index] >= HOLD_MAX)
+                until = int(opened[0]) if opened.size else len(chunk)
+                chunk[:until, grip_index] = np.maximum(chunk[:until, grip_index], state[grip_index])
         cf = self.gamma(chunk, current_images=current_images, current_state=state)
         assert cf.render is not None and cf.prior is not None
         assert cf.render.shaded is not None and cf.render.depth is not None

@@ -86,11 +86,21 @@ def net_inputs(base: torch.Tensor, scal: torch.Tensor) -> tuple[torch.Tensor, to
     return torch.cat([x, planes], 1), grips
 
 
-def candidates(x: torch.Tensor, generated: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Base channels in [0, 1] → (N, 5, 3, h, w) candidate images and (N, 5, h, w) validity (CANDIDATES order)."""
+def candidates(
+    x: torch.Tensor, generated: torch.Tensor, plate: torch.Tensor, view: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Base channels in [0, 1] → (N, 5, 3, h, w) candidate images and (N, 5, h, w) validity (CANDIDATES order).
+
+    ``plate`` (3, H, W) in [0, 1] is valid in the head view (``view`` index 0) only.
+    """
+    n, _, h, w = x.shape
     one = torch.ones_like(x[:, 3])
-    cands = torch.stack([x[:, 0:3], x[:, 4:7], x[:, 7:10], x[:, 11:14], generated], 1)
-    valid = torch.stack([(x[:, 3] > 0.5).float(), one, (x[:, 10] > 0.5).float(), (x[:, 14] > 0.5).float(), one], 1)
+    if plate.shape[-1] != w:
+        plate = F.adaptive_avg_pool2d(plate[None], (h, w))[0]
+    head = (view == 0).float()[:, None, None].expand(n, h, w)
+    plates = plate[None].expand(n, -1, -1, -1)
+    cands = torch.stack([x[:, 0:3], x[:, 7:10], x[:, 11:14], generated, plates], 1)
+    valid = torch.stack([(x[:, 3] > 0.5).float(), (x[:, 10] > 0.5).float(), (x[:, 14] > 0.5).float(), one, head], 1)
     return cands, valid
 
 
@@ -100,13 +110,14 @@ def blend(
     gates: torch.Tensor,
     generated: torch.Tensor,
     painter: RobotPainter,
+    plate: torch.Tensor,
 ) -> torch.Tensor:
     """The composite at the resolution of the base channels ``x`` (in [0, 1]); gates/generated are resized to it."""
     h, w = x.shape[-2:]
     if gates.shape[-1] != w:  # the gates choose between full-resolution layers
         gates = F.interpolate(gates, size=(h, w), mode="bilinear", align_corners=False)
         generated = F.interpolate(generated, size=(h, w), mode="bilinear", align_corners=False)
-    cands, valid = candidates(x, generated)
+    cands, valid = candidates(x, generated, plate, scal[:, 5])
     logits = gates.masked_fill(valid < 0.5, -1e4)
     weights = torch.softmax(logits, 1)
     scene = (weights[:, :, None] * cands).sum(1)
@@ -125,6 +136,9 @@ class CompositeWorldModel(nn.Module):
         self.config = config
         self.net = CompositeUNet(config.width, config.work_size)
         self.painter = RobotPainter()
+        # The head camera's empty scene (table and background, no robot, no objects), RGB in [0, 1]: set from
+        # the training data (robot-masked per-pixel median, :func:`.plate.estimate_plate`), saved with the weights.
+        self.register_buffer("plate", torch.zeros(3, config.image_size, config.image_size))
         self._rig = rig
         self._builder: LayerBuilder | None = None
 
@@ -204,7 +218,7 @@ class CompositeWorldModel(nn.Module):
         small = F.adaptive_avg_pool2d(base.float(), s)  # the network's input, as in training (area-averaged)
         inp, cmd = net_inputs(small, scal)
         gates, generated, grips = self.net(inp, cmd)
-        out = blend(x, scal, gates, generated, self.painter)
+        out = blend(x, scal, gates, generated, self.painter, self.plate)
         frames = (out.clamp(0, 1) * 255.0).round().to(torch.uint8).permute(0, 2, 3, 1).numpy()
         K = self.config.future
         by_view = {v: frames[i * K : (i + 1) * K] for i, v in enumerate(self.config.views)}
@@ -245,4 +259,4 @@ class CompositeWorldModel(nn.Module):
         """Training: cached base channels at ``work_size`` → (composite (N, 3, h, w), grips (N, 2))."""
         inp, cmd = net_inputs(base, scal)
         gates, generated, grips = self.net(inp, cmd)
-        return blend(base.float() / 255.0, scal, gates, generated, self.painter), grips
+        return blend(base.float() / 255.0, scal, gates, generated, self.painter, self.plate), grips

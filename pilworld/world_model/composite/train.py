@@ -200,6 +200,13 @@ def train_composite(
         rig=settings.rig, width=settings.width, work_size=settings.work_size, image_size=rig_cfg.image_size.width
     )
     model = CompositeWorldModel(config, rig_cfg)
+    plate_file = Path(cache) / "plate.npy"
+    if not plate_file.is_file():
+        from pilworld.world_model.composite.plate import estimate_plate
+
+        np.save(plate_file, estimate_plate(settings.data, rig_cfg, seed=settings.seed, progress=progress))
+    with torch.no_grad():
+        model.plate.copy_(torch.from_numpy(np.load(plate_file)))
     params = dict(model.named_parameters())
     names = {id(p): k for k, p in params.items()}
     opt = torch.optim.AdamW(params.values(), lr=settings.lr, weight_decay=1e-4)
