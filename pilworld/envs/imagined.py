@@ -36,12 +36,15 @@ class HistoryMemory:
 
     A start with fewer than H_h history frames is padded at the front with copies of its oldest frame
     (or of the current frame) flagged invalid — the same rule training clips use at an episode start.
+    The joint state of each frame is kept beside it (models that render the robot need to know where
+    it was in each remembered frame).
     """
 
     def __init__(self, views: Sequence[str], size: int) -> None:
         self.views = tuple(views)
         self.size = size
         self._frames: dict[str, list[NDArray[np.uint8]]] = {v: [] for v in self.views}
+        self._states: list[NDArray[np.float32]] = []
         self._valid: list[bool] = []
 
     def reset(self, history: Sequence[Observation], current: Observation) -> None:
@@ -51,18 +54,26 @@ class HistoryMemory:
         self._frames = {
             v: [np.asarray(first.images[v])] * pad + [np.asarray(o.images[v]) for o in recent] for v in self.views
         }
+        self._states = [np.asarray(first.state, np.float32)] * pad + [np.asarray(o.state, np.float32) for o in recent]
         self._valid = [False] * pad + [True] * len(recent)
 
-    def push(self, frames: dict[str, NDArray[np.uint8]]) -> None:
+    def push(self, frames: dict[str, NDArray[np.uint8]], state: NDArray[np.floating] | None = None) -> None:
         """Append one frame per view (the previous current frame or a generated one); keep the last H_h."""
         if not self.size:
             return
         for v in self.views:
             self._frames[v] = [*self._frames[v], frames[v]][-self.size :]
+        last = self._states[-1] if self._states else np.zeros(0, np.float32)
+        st = last if state is None else np.asarray(state, np.float32)
+        self._states = [*self._states, st][-self.size :]
         self._valid = [*self._valid, True][-self.size :]
 
     def arrays(self) -> tuple[dict[str, NDArray[np.uint8]], NDArray[np.bool_]]:
         return {v: np.stack(f) for v, f in self._frames.items()} if self.size else {}, np.array(self._valid, dtype=bool)
+
+    def states(self) -> NDArray[np.float32] | None:
+        """(H_h, 14) joint states of the remembered frames (None without memory)."""
+        return np.stack(self._states) if self.size and self._states else None
 
 
 class ImaginedEnv:
@@ -151,6 +162,7 @@ class ImaginedEnv:
             actions=stride_actions,
             instruction=self._instruction,
             state=self._obs.state,
+            history_state=self.memory.states(),
         )
         # A different seed per round, fixed per (env seed, round): reruns reproduce the same rollout.
         seed = self.seed * 1000 + self._round
@@ -177,9 +189,9 @@ class ImaginedEnv:
             for k in range(spec.frames)
         )
         # Memory: the old current frame, then every generated frame but the last (the new current).
-        self.memory.push(dict(self._obs.images))
+        self.memory.push(dict(self._obs.images), self._obs.state)
         for o in observations[:-1]:
-            self.memory.push(dict(o.images))
+            self.memory.push(dict(o.images), o.state)
         segment = Segment(observations=observations, actions=executed, stride=spec.stride)
         self._obs = segment.last
         self._round += 1

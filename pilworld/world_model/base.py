@@ -71,6 +71,7 @@ class PredictRequest:
     # [STATE_DIM] the joint state the chunk starts from (measured, or predicted by the model last round);
     # world models that composite geometry (v2) need it, the others ignore it
     state: NDArray[np.float32] | None = None
+    history_state: NDArray[np.float32] | None = None  # [H_h, STATE_DIM] the joint state of each history frame
 
     @classmethod
     def build(
@@ -84,6 +85,7 @@ class PredictRequest:
         instruction: str,
         history_valid: Sequence[bool] | NDArray[np.bool_] | None = None,
         state: Any = None,
+        history_state: Any = None,
     ) -> PredictRequest:
         """Validate every input against ``info``; ``history=None`` repeats the current frame (all invalid)."""
         H, W, K, Hh = info.height, info.width, info.future, info.history
@@ -127,7 +129,12 @@ class PredictRequest:
             st = np.asarray(state, dtype=np.float32)
             if st.shape != (STATE_DIM,) or not np.all(np.isfinite(st)):
                 raise ValueError(f"state: expected {STATE_DIM} finite joint values, got shape {st.shape}")
-        return cls(cur, hist, valid, ctrl, act, instruction, st)
+        hst = None
+        if history_state is not None:
+            hst = np.asarray(history_state, dtype=np.float32)
+            if hst.shape != (Hh, STATE_DIM) or not np.all(np.isfinite(hst)):
+                raise ValueError(f"history_state: expected ({Hh}, {STATE_DIM}) finite joint values, got {hst.shape}")
+        return cls(cur, hist, valid, ctrl, act, instruction, st, hst)
 
     def to_batch(self, views: Sequence[str]) -> WorldModelBatch:
         def t(x: NDArray[np.uint8]) -> torch.Tensor:  # [..., H, W, 3] -> [..., 3, H, W]

@@ -23,11 +23,13 @@ from tqdm import tqdm
 
 from pilworld.types import ARM_LAYOUT
 
-BASE_CHANNELS = 21  # prior 3 + valid 1, current 3, carry L 3 + 1, carry R 3 + 1, parts one-hot 4, shade 1, depth 1
+# prior 3 + valid 1, current 3, carry L 3 + 1, carry R 3 + 1, parts one-hot 4, shade 1, depth 1, memory 3 + valid 1
+BASE_CHANNELS = 25
+MEMORY_FRAMES = 15  # history frames the memory looks back over (one round: K frames)
 SCALARS = 8  # holding L/R, released L/R, k/K, view index, commanded grips L/R
 DEPTH_SCALE = 2.0  # metres mapped to 255
 GRIPS = [ARM_LAYOUT["left"][1], ARM_LAYOUT["right"][1]]
-LAYERS_VERSION = 2  # bump when pilworld.world_model.composite.layers changes what it computes
+LAYERS_VERSION = 3  # bump when pilworld.world_model.composite.layers changes what it computes
 
 
 @dataclass(frozen=True)
@@ -66,6 +68,8 @@ def base_channels(layers: Any, view: str, k: int, current: NDArray[np.uint8], si
         np.stack([mono((parts == p) * 255) for p in (1, 2, 3, 4)]),
         mono(layers.shade[view][k])[None],
         mono(np.clip(layers.depth[view][k] / DEPTH_SCALE * 255, 0, 255))[None],
+        rgb(layers.memory[view]).transpose(2, 0, 1),
+        mono(layers.memory_valid[view] * 255)[None],
     ]
     return np.concatenate(chans, 0)
 
@@ -95,7 +99,7 @@ def _clip_dataset(data: str) -> Any:
     from pilworld.data.clips import ClipSpec
 
     steps = ClipDataset(data).store.spec.steps_per_frame
-    return ClipDataset(data, ClipSpec.for_dataset(steps, window=3))
+    return ClipDataset(data, ClipSpec.for_dataset(steps, window=3, history=MEMORY_FRAMES))
 
 
 def _init(spec: CacheSpec, rig: Any) -> None:
@@ -122,7 +126,16 @@ def _build(
     views = ds.views
     cur = {v: np.moveaxis(it["current"][j].numpy(), 0, -1) for j, v in enumerate(views)}
     fut = {v: np.moveaxis(it["future"][j].numpy(), 1, -1) for j, v in enumerate(views)}
-    layers = lb(cur, it["state"].numpy(), it["actions"].numpy())
+    head = views.index("cam_high")
+    hist_idx, _ = ds.spec.history_indices(clip.t)
+    layers = lb(
+        cur,
+        it["state"].numpy(),
+        it["actions"].numpy(),
+        {"cam_high": np.moveaxis(it["history"][head].numpy(), 1, -1)},
+        state_all[hist_idx],
+        it["history_valid"].numpy(),
+    )
     K = layers.poses.shape[0]
     n = len(ks) * len(views)
     inp = np.empty((n, BASE_CHANNELS, spec.size, spec.size), np.uint8)

@@ -6,6 +6,9 @@ stride-aligned actions:
 * ``render``: the robot at its lagged pose (part ids, headlight shade, depth) — Γ⁺'s render;
 * ``prior``: the static scene, the current frame reprojected into the future camera pose through the
   table plane with the robot's pixels removed — Γ⁺'s prior (with its validity);
+* ``memory``: in the static head view, each pixel as last seen without the robot over it, in the history
+  frames and the current one (the robot's pixels from renders at the remembered states) — what an arm
+  uncovers when it moves away (the prior leaves it empty, since the current frame shows the arm there);
 * ``carry`` (one per arm): what that gripper holds, moved rigidly with it. A gripper *holds from* the
   first frame its opening is below :data:`HOLD_MAX` (the current frame when it already rests on
   something) until the first frame it opens again; in between, the content around the tool point
@@ -49,6 +52,8 @@ class ChunkLayers:
     prior_valid: dict[str, NDArray[np.bool_]]  # (K, H, W)
     carry: dict[str, dict[str, U8]]  # side → view → (K, H, W, 3)
     carry_valid: dict[str, dict[str, NDArray[np.bool_]]]  # side → view → (K, H, W)
+    memory: dict[str, U8]  # (H, W, 3) per view: the latest remembered robot-free view of each pixel (head only)
+    memory_valid: dict[str, NDArray[np.bool_]]  # (H, W)
     holding: F32  # (K, 2) 1 while a gripper holds (from its grasp frame until it opens), per side
     released: F32  # (K, 2) 1 after a hold ended within this chunk, per side
     poses: NDArray[np.float64]  # (K, 14) the lagged joint poses the render uses
@@ -92,8 +97,15 @@ class LayerBuilder:
         self._wrist_of = {v.arm: v.name for v in self.cameras.views if v.arm is not None}
 
     def __call__(
-        self, current_images: dict[str, U8], current_state: NDArray[np.floating], stride_actions: NDArray[np.floating]
+        self,
+        current_images: dict[str, U8],
+        current_state: NDArray[np.floating],
+        stride_actions: NDArray[np.floating],
+        history_images: dict[str, U8] | None = None,
+        history_states: NDArray[np.floating] | None = None,
+        history_valid: NDArray[np.bool_] | None = None,
     ) -> ChunkLayers:
+        """Layers of one chunk; ``history_*`` (H_h frames oldest first, their states and validity) feed ``memory``."""
         state = np.asarray(current_state, dtype=np.float64)
         stride = np.asarray(stride_actions, dtype=np.float64)
         if state.shape != (STATE_DIM,) or stride.ndim != 2 or stride.shape[1] != STATE_DIM:
@@ -156,6 +168,7 @@ class LayerBuilder:
                         else:
                             carry[side][name][i - 1] = cf.prior.images[name][g - 1]
                             carry_valid[side][name][i - 1] = cf.prior.valid[name][g - 1]
+        memory, memory_valid = self._memory(current_images, state, history_images, history_states, history_valid)
         parts = cf.render.parts
         shade = {v: np.asarray(cf.render.shaded[v]).max(axis=-1) for v in self.views}
         return ChunkLayers(
@@ -167,10 +180,44 @@ class LayerBuilder:
             prior_valid=cf.prior.valid,
             carry=carry,
             carry_valid=carry_valid,
+            memory=memory,
+            memory_valid=memory_valid,
             holding=holding,
             released=released,
             poses=poses,
         )
+
+    def _memory(
+        self,
+        current: dict[str, U8],
+        state: NDArray[np.float64],
+        history: dict[str, U8] | None,
+        states: NDArray[np.floating] | None,
+        valid: NDArray[np.bool_] | None,
+    ) -> tuple[dict[str, U8], dict[str, NDArray[np.bool_]]]:
+        out: dict[str, U8] = {}
+        ok: dict[str, NDArray[np.bool_]] = {}
+        for view in self.cameras.views:
+            h, w = view.model.height, view.model.width
+            out[view.name] = np.zeros((h, w, 3), np.uint8)
+            ok[view.name] = np.zeros((h, w), bool)
+        head = next((v.name for v in self.cameras.views if v.arm is None), None)
+        if head is None:
+            return out, ok
+        frames = [] if history is None or states is None else list(zip(history[head], states, strict=True))
+        if valid is not None and frames:
+            frames = [f for f, keep in zip(frames, np.asarray(valid, bool), strict=True) if keep]
+        frames.append((np.asarray(current[head]), state))
+        assert self.gamma.renderer is not None
+        q = np.stack([np.asarray(st, np.float64) for _, st in frames])
+        parts = self.gamma.renderer.render(q, depth=False, shaded=False).parts[head]
+        kernel = np.ones((5, 5), np.uint8)
+        mem, seen = out[head], ok[head]
+        for (img, _), p in zip(frames, parts, strict=True):
+            free = cv2.dilate((p > 0).astype(np.uint8), kernel) == 0
+            mem[free] = np.asarray(img)[free]
+            seen |= free
+        return out, ok
 
     def gamma_poses(self, chunk: NDArray[np.float64], state: NDArray[np.float64]) -> NDArray[np.float64]:
         from pilworld.control_video.lag import lagged_poses

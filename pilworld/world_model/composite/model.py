@@ -43,7 +43,7 @@ class CompositeConfig:
     work_size: int = 32  # the U-Net's resolution; the composite is at image_size (training: at the cache's)
     width: int = 16
     future: int = 15
-    history: int = 5  # accepted (the interface's H_h) but unused: the layers need only the current frame
+    history: int = 15  # H_h: one round of frames, the head view's memory of what the robot covers now
 
     def __post_init__(self) -> None:
         if self.image_size % self.work_size or self.work_size % 4:
@@ -72,7 +72,8 @@ class CompositeConfig:
 
 
 # Base channel layout (see cache.base_channels): prior 0-2, prior valid 3, current 4-6, carry L 7-9, valid 10,
-# carry R 11-13, valid 14, part one-hot 15-18 (L arm, L fingers, R arm, R fingers), shade 19, depth 20.
+# carry R 11-13, valid 14, part one-hot 15-18 (L arm, L fingers, R arm, R fingers), shade 19, depth 20,
+# memory 21-23, memory valid 24.
 _PARTS, _SHADE, _DEPTH = slice(15, 19), slice(19, 20), slice(20, 21)
 
 
@@ -99,8 +100,18 @@ def candidates(
         plate = F.adaptive_avg_pool2d(plate[None], (h, w))[0]
     head = (view == 0).float()[:, None, None].expand(n, h, w)
     plates = plate[None].expand(n, -1, -1, -1)
-    cands = torch.stack([x[:, 0:3], x[:, 7:10], x[:, 11:14], generated, plates], 1)
-    valid = torch.stack([(x[:, 3] > 0.5).float(), (x[:, 10] > 0.5).float(), (x[:, 14] > 0.5).float(), one, head], 1)
+    cands = torch.stack([x[:, 0:3], x[:, 7:10], x[:, 11:14], generated, plates, x[:, 21:24]], 1)
+    valid = torch.stack(
+        [
+            (x[:, 3] > 0.5).float(),
+            (x[:, 10] > 0.5).float(),
+            (x[:, 14] > 0.5).float(),
+            one,
+            head,
+            (x[:, 24] > 0.5).float(),
+        ],
+        1,
+    )
     return cands, valid
 
 
@@ -187,6 +198,10 @@ class CompositeWorldModel(nn.Module):
                     np.stack([(parts == p) * np.uint8(255) for p in (1, 2, 3, 4)], 1).astype(np.uint8),
                     layers.shade[v][:, None],
                     np.clip(layers.depth[v] / DEPTH_SCALE * 255, 0, 255).astype(np.uint8)[:, None],
+                    np.broadcast_to(layers.memory[v].transpose(2, 0, 1)[None], (K, 3, *parts.shape[1:])),
+                    np.broadcast_to(
+                        (layers.memory_valid[v] * np.uint8(255)).astype(np.uint8)[None, None], (K, 1, *parts.shape[1:])
+                    ),
                 ],
                 1,
             )
@@ -211,7 +226,15 @@ class CompositeWorldModel(nn.Module):
         """One chunk: view → uint8 (K, H, W, 3), and the (K, 14) state the robot will report."""
         if request.state is None:
             raise ValueError("state: world model v2 needs the current joint state (PredictRequest.build(..., state=))")
-        layers = self.builder(dict(request.current), request.state, request.actions)
+        head = self.config.views[0]
+        layers = self.builder(
+            dict(request.current),
+            request.state,
+            request.actions,
+            {head: request.history[head]},
+            request.history_state,
+            request.history_valid,
+        )
         base, scal = self.base_full(layers, dict(request.current))
         x = base.float() / 255.0
         s = self.config.work_size

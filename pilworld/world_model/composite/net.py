@@ -5,7 +5,8 @@ Input per (view, future frame), at the network's working resolution: the candida
 one-hot, shade, depth), per-frame flags (holding / released per arm, k/K) and the view. Output:
 
 * per-pixel gate logits over the candidates ``[prior, carry_left, carry_right, generated, plate]``
-  (``plate``: the static head camera's empty scene, a buffer estimated from the training data);
+  (``plate``: the static head camera's empty scene, a buffer estimated from the training data; ``memory``:
+  what the head camera last saw of each pixel without the robot over it);
 * ``generated``: an RGB fill for what no layer has (disoccluded table, a shadow);
 * the gripper openings (left, right) the robot will *measure* at that frame (a gripper closed on an
   object stops at its width), from the bottleneck features.
@@ -23,11 +24,11 @@ from torch.nn import functional as F
 N_PARTS = 5  # background, left arm, left fingers, right arm, right fingers
 # The current frame is an input, not a candidate: outside the robot's pixels it equals the prior, and on
 # them it shows the robot where it no longer is (a ghost). "plate": the empty scene of a static camera.
-CANDIDATES = ("prior", "carry_left", "carry_right", "generated", "plate")
+CANDIDATES = ("prior", "carry_left", "carry_right", "generated", "plate", "memory")
 N_VIEWS = 3
 # prior 3 + valid 1, current 3, carry L 3 + 1, carry R 3 + 1, parts one-hot 4, shade 1, depth 1,
-# flags: holding L/R, released L/R, k/K (5), view one-hot 3, commanded grips L/R 2
-IN_CHANNELS = 4 + 3 + 4 + 4 + 4 + 1 + 1 + 5 + N_VIEWS + 2
+# memory 3 + valid 1, flags: holding L/R, released L/R, k/K (5), view one-hot 3, commanded grips L/R 2
+IN_CHANNELS = 4 + 3 + 4 + 4 + 4 + 1 + 1 + 4 + 5 + N_VIEWS + 2
 
 
 def _conv(cin: int, cout: int) -> nn.Sequential:

@@ -16,7 +16,9 @@ from tqdm import tqdm
 from pilworld.types import HEAD_VIEW
 
 
-def estimate_plate(data: str, rig: object, *, frames: int = 240, seed: int = 0, progress: bool = True) -> NDArray[np.float32]:
+def estimate_plate(
+    data: str, rig: object, *, frames: int = 240, seed: int = 0, progress: bool = True
+) -> NDArray[np.float32]:
     """(3, H, W) float32 in [0, 1]: the empty head-camera scene of dataset ``data`` recorded on ``rig``."""
     from pilworld.control_video.robot_render import make_robot_renderer
     from pilworld.data.clip_dataset import ClipDataset

@@ -180,7 +180,12 @@ def train_composite(
     settings_path.write_text(json.dumps(want, indent=2))
     cache = build_cache(
         CacheSpec(
-            settings.data, settings.rig, settings.cache_size, settings.frames_per_clip, settings.max_clips, settings.seed
+            settings.data,
+            settings.rig,
+            settings.cache_size,
+            settings.frames_per_clip,
+            settings.max_clips,
+            settings.seed,
         ),
         root / "cache",
         rig=rig,
