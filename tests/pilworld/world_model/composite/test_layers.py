@@ -95,3 +95,30 @@ def test_bad_shapes_are_refused(rig32: RigConfig) -> None:
     builder = LayerBuilder(rig32)
     with pytest.raises(ValueError, match="layers"):
         builder({v: np.zeros((32, 32, 3), np.uint8) for v in rig32.cameras}, np.zeros(13), np.zeros((15, 14)))
+
+
+def test_memory_remembers_what_the_robot_covers_now(rig32: RigConfig) -> None:
+    """A pixel under the arm now, seen free in a history frame, is in the memory with that frame's colour."""
+    builder = LayerBuilder(rig32)
+    state, stride = _moving_chunk(1.0, 1.0)
+    now = builder.gamma.renderer.render(state[None], depth=False, shaded=False).parts["cam_high"][0]  # type: ignore[union-attr]
+    earlier = state.copy()
+    earlier[LEFT_ARM.start] += 0.5  # the arm was elsewhere
+    then = builder.gamma.renderer.render(earlier[None], depth=False, shaded=False).parts["cam_high"][0]  # type: ignore[union-attr]
+    covered_now_free_then = (now > 0) & (then == 0)
+    assert covered_now_free_then.sum() > 3
+    current = {v: np.full((32, 32, 3), 100, np.uint8) for v in rig32.cameras}
+    history = {"cam_high": np.full((2, 32, 32, 3), 7, np.uint8)}
+    history["cam_high"][1] = 200
+    states = np.stack([earlier, earlier])
+    layers = builder(current, state, stride, history, states, np.array([True, True]))
+    mem, ok = layers.memory["cam_high"], layers.memory_valid["cam_high"]
+    # the latest history frame wins where the current frame shows the robot; elsewhere the current frame
+    assert ok[covered_now_free_then].mean() > 0.5
+    assert (mem[ok & covered_now_free_then] == 200).all()
+    far = (now == 0) & (then == 0)
+    assert (mem[far & ok] == 100).mean() > 0.9
+    assert not layers.memory_valid["cam_left_wrist"].any()  # moving cameras keep no memory
+    # without history states the memory is the current frame's robot-free pixels only
+    bare = builder(current, state, stride, history, None, None)
+    assert not bare.memory_valid["cam_high"][now > 0].any()
