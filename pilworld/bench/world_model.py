@@ -181,16 +181,26 @@ def fit_batch(batch: WorldModelBatch, info: WorldModelInfo, what: str = "model")
     if n_future != info.future:
         raise ValueError(f"{what}: predicts K={info.future} frames, the clips have K={n_future}")
     have = batch.history.shape[2]
+    history, valid = (
+        batch.history[:, :, max(0, have - info.history) :],
+        batch.history_valid[:, max(0, have - info.history) :],
+    )
     if info.history > have:
-        raise ValueError(f"{what}: wants H_h={info.history} history frames, the clips have {have}")
+        # A model with a longer memory than the clips: pad at the front with copies flagged invalid, the rule
+        # the imagined branch's memory uses at a rollout's start.
+        pad = info.history - have
+        first = batch.history[:, :, :1] if have else batch.current[:, :, None]
+        history = torch.cat([first.expand(-1, -1, pad, -1, -1, -1), history], 2)
+        valid = torch.cat([torch.zeros(valid.shape[0], pad, dtype=torch.bool), valid], 1)
     h, w = info.height, info.width
     return WorldModelBatch(
         current=resize_images(batch.current, h, w),
-        history=resize_images(batch.history[:, :, have - info.history :], h, w),
-        history_valid=batch.history_valid[:, have - info.history :],
+        history=resize_images(history, h, w),
+        history_valid=valid,
         control=resize_images(batch.control, h, w),
         actions=batch.actions,
         instruction=list(batch.instruction),
+        state=batch.state,
     )
 
 
@@ -208,6 +218,7 @@ def _request(batch: WorldModelBatch, info: WorldModelInfo) -> PredictRequest:
         control=hwc(batch.control[0]),
         actions=batch.actions[0].numpy(),
         instruction=batch.instruction[0],
+        state=None if batch.state is None else batch.state[0].numpy(),
     )
 
 

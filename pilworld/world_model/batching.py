@@ -43,6 +43,9 @@ def collate_clips(items: Sequence[dict[str, Any]], gamma: ControlVideo) -> World
         actions=actions,
         instruction=[str(it["instruction"]) for it in items],
         future=torch.stack([it["future"] for it in items]),
+        state=torch.stack([torch.as_tensor(it["state"]) for it in items])
+        if all("state" in it for it in items)
+        else None,
     )
 
 

@@ -46,7 +46,10 @@ def test_cache_is_deterministic_and_refuses_other_settings(dataset: Path, tmp_pa
 def test_training_resumes_exactly(dataset: Path, tmp_path: Path, rig32: RigConfig) -> None:
     straight = train_composite(_settings(dataset, 6), tmp_path / "s", checkpoint_every=3, progress=False, rig=rig32)
     half = tmp_path / "r"
-    assert train_composite(_settings(dataset, 6), half, checkpoint_every=5, progress=False, rig=rig32, stop_after=3) is None
+    assert (
+        train_composite(_settings(dataset, 6), half, checkpoint_every=5, progress=False, rig=rig32, stop_after=3)
+        is None
+    )
     resumed = train_composite(_settings(dataset, 6), half, checkpoint_every=5, progress=False, rig=rig32)
     assert straight is not None and resumed is not None
     a, b = load_file(str(straight / "model.safetensors")), load_file(str(resumed / "model.safetensors"))
