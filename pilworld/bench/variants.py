@@ -71,17 +71,15 @@ def standard_variants() -> list[ModelVariant]:
     thing of the shipped model: its history memory hidden at inference, or its stage-2 task adapters
     fine-tuned on successes only (the paper's stage 2 uses successes and failures).
     """
-    from pilworld.world_model import V1_CHECKPOINT
-
-    v1 = str(V1_CHECKPOINT)
     return [
-        ModelVariant("pilworld", "PiL-World v2 (shipped: Γ⁺ composite, predicted state)", role="shipped"),
+        ModelVariant("pilworld", "PiL-World v1 (shipped, 9k steps, task adapters)", role="shipped"),
         ModelVariant(
-            "pilworld_v1",
-            "PiL-World v1 (paper-style: marker Γ, 8× latent, 9k steps, task adapters)",
-            v1,
-            role="reference",
-            note="the model shipped before issue #21 (pilworld/world_model/weights/sim_small)",
+            "pilworld_v2",
+            "PiL-World v2 (Γ⁺ composite, predicted state; issue #21, in progress)",
+            bench_model("composite_v2c"),
+            adapter="none",
+            role="model",
+            note="docs/world_model.md, 'World model v2': not yet the default (it does not yet predict outcomes)",
         ),
         ModelVariant(
             "ctrl_world",
@@ -99,11 +97,10 @@ def standard_variants() -> list[ModelVariant]:
         ),
         ModelVariant(
             "no_history",
-            "− history (v1, memory hidden)",
-            v1,
+            "− history (shipped, memory hidden)",
             history=False,
             role="ablation",
-            note="inference-time: v1's weights with the latent history memory masked (v2 has no history memory)",
+            note="inference-time: the shipped weights with the latent history memory masked",
         ),
         ModelVariant(
             "success_only",

@@ -235,7 +235,7 @@ def register(sub: Any) -> None:
     cl.add_argument(
         "--models",
         default="",
-        help="NAME=FOLDER,... (default: v1 = the paper-style sim_small, v2 = the shipped default); ratios to the first",
+        help="NAME=FOLDER,... (default: v1 = the shipped sim_small, v2 = weights/bench/composite_v2c); ratios to the first",
     )
     cl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     cl.add_argument("--task", default="sort_cubes", help="task of the start and of the adapter (default sort_cubes)")
@@ -460,9 +460,10 @@ def _calibration(args: argparse.Namespace) -> int:
 
 def _chunk_latency(args: argparse.Namespace) -> int:
     from pilworld.bench.chunk_latency import parse_models, run_chunk_latency
-    from pilworld.world_model import DEFAULT_CHECKPOINT, V1_CHECKPOINT
+    from pilworld.bench.variants import bench_model
+    from pilworld.world_model import V1_CHECKPOINT
 
-    text = args.models or f"v1={V1_CHECKPOINT},v2={DEFAULT_CHECKPOINT}"
+    text = args.models or f"v1={V1_CHECKPOINT},v2={bench_model('composite_v2c')}"
     result = run_chunk_latency(parse_models(text), rig=args.rig, task=args.task, repeats=args.repeats)
     for name, m in result["models"].items():
         print(f"{name:>12}: median {m['median_ms']:.1f} ms, p90 {m['p90_ms']:.1f} ms, ×{m['ratio_to_first']:.2f}")
