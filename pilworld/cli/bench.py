@@ -235,7 +235,7 @@ def register(sub: Any) -> None:
     cl.add_argument(
         "--models",
         default="",
-        help="NAME=FOLDER,... (default: v1 = the shipped sim_small, v2 = weights/bench/composite_v2c); ratios to the first",
+        help="NAME=FOLDER,... (default: v1 = shipped sim_small, v2 = weights/bench/composite_v2c); ratios to the first",
     )
     cl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     cl.add_argument("--task", default="sort_cubes", help="task of the start and of the adapter (default sort_cubes)")
