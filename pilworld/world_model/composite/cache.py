@@ -23,13 +23,14 @@ from tqdm import tqdm
 
 from pilworld.types import ARM_LAYOUT
 
-# prior 3 + valid 1, current 3, carry L 3 + 1, carry R 3 + 1, parts one-hot 4, shade 1, depth 1, memory 3 + valid 1
-BASE_CHANNELS = 25
+# prior 3 + valid 1, current 3, carry L 3 + 1, carry R 3 + 1, parts one-hot 4, shade 1, depth 1, memory 3 + valid 1,
+# hand region 1
+BASE_CHANNELS = 26
 MEMORY_FRAMES = 15  # history frames the memory looks back over (one round: K frames)
 SCALARS = 8  # holding L/R, released L/R, k/K, view index, commanded grips L/R
 DEPTH_SCALE = 2.0  # metres mapped to 255
 GRIPS = [ARM_LAYOUT["left"][1], ARM_LAYOUT["right"][1]]
-LAYERS_VERSION = 3  # bump when pilworld.world_model.composite.layers changes what it computes
+LAYERS_VERSION = 4  # bump when pilworld.world_model.composite.layers changes what it computes
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,7 @@ def base_channels(layers: Any, view: str, k: int, current: NDArray[np.uint8], si
         mono(np.clip(layers.depth[view][k] / DEPTH_SCALE * 255, 0, 255))[None],
         rgb(layers.memory[view]).transpose(2, 0, 1),
         mono(layers.memory_valid[view] * 255)[None],
+        mono(layers.hands[view][k] * 255)[None],
     ]
     return np.concatenate(chans, 0)
 

@@ -9,6 +9,9 @@ stride-aligned actions:
 * ``memory``: in the static head view, each pixel as last seen without the robot over it, in the history
   frames and the current one (the robot's pixels from renders at the remembered states) — what an arm
   uncovers when it moves away (the prior leaves it empty, since the current frame shows the arm there);
+* ``hands``: where a hand can have changed the scene by frame k — in the head view, the pixels near the
+  path of either tool point from now to frame k (objects move only where a gripper touches them; the
+  composite keeps everything else as it was); the moving wrist views are all "near";
 * ``carry`` (one per arm): what that gripper holds, moved rigidly with it. A gripper *holds from* the
   first frame its opening is below :data:`HOLD_MAX` (the current frame when it already rests on
   something) until the first frame it opens again; in between, the content around the tool point
@@ -37,6 +40,7 @@ from pilworld.types import ARM_LAYOUT, STATE_DIM, ChunkSpec
 U8 = NDArray[np.uint8]
 F32 = NDArray[np.float32]
 HOLD_MAX = 0.85  # grip below this: closed, or resting on an object (the policy's and the judge's threshold)
+HAND_REACH = 0.09  # the head view's hand region: within this fraction of the image of the tool's path so far
 SIDES = tuple(ARM_LAYOUT)  # ("left", "right")
 
 
@@ -52,6 +56,7 @@ class ChunkLayers:
     prior_valid: dict[str, NDArray[np.bool_]]  # (K, H, W)
     carry: dict[str, dict[str, U8]]  # side → view → (K, H, W, 3)
     carry_valid: dict[str, dict[str, NDArray[np.bool_]]]  # side → view → (K, H, W)
+    hands: dict[str, NDArray[np.bool_]]  # (K, H, W): where a hand can have changed the scene by frame k
     memory: dict[str, U8]  # (H, W, 3) per view: the latest remembered robot-free view of each pixel (head only)
     memory_valid: dict[str, NDArray[np.bool_]]  # (H, W)
     holding: F32  # (K, 2) 1 while a gripper holds (from its grasp frame until it opens), per side
@@ -141,6 +146,7 @@ class LayerBuilder:
                 carry[side][view.name], carry_valid[side][view.name] = img, ok
             if g is None:
                 continue
+            grasp_view: dict[str, tuple[U8, NDArray[np.bool_]]] = {}
             for i in range(max(g, 1), K + 1):
                 held_until = i if r is None or i < r else r - 1  # frozen where it was let go
                 holding[i - 1, si] = 1.0 if r is None or i < r else 0.0
@@ -166,8 +172,11 @@ class LayerBuilder:
                             carry[side][name][i - 1] = src
                             carry_valid[side][name][i - 1] = True
                         else:
-                            carry[side][name][i - 1] = cf.prior.images[name][g - 1]
-                            carry_valid[side][name][i - 1] = cf.prior.valid[name][g - 1]
+                            grasp_view[name] = grasp_view.get(name) or self._view_at(
+                                current_images, state, seq[g], name
+                            )
+                            carry[side][name][i - 1], carry_valid[side][name][i - 1] = grasp_view[name]
+        hands = self._hands(tcp)
         memory, memory_valid = self._memory(current_images, state, history_images, history_states, history_valid)
         parts = cf.render.parts
         shade = {v: np.asarray(cf.render.shaded[v]).max(axis=-1) for v in self.views}
@@ -180,12 +189,47 @@ class LayerBuilder:
             prior_valid=cf.prior.valid,
             carry=carry,
             carry_valid=carry_valid,
+            hands=hands,
             memory=memory,
             memory_valid=memory_valid,
             holding=holding,
             released=released,
             poses=poses,
         )
+
+    def _view_at(
+        self, current: dict[str, U8], state: NDArray[np.float64], q: NDArray[np.float64], view: str
+    ) -> tuple[U8, NDArray[np.bool_]]:
+        """The current frame of ``view`` reprojected to the pose ``q``, keeping what is near the fingers there.
+
+        Γ⁺'s prior leaves the future robot's surroundings empty; what a gripper grasps sits exactly there.
+        """
+        assert self.gamma.reprojector is not None and self.gamma.renderer is not None
+        now = self.gamma.renderer.render(state[None], depth=False, shaded=False).parts
+        prior = self.gamma.reprojector(current, state, q[None], {v: p[0] > 0 for v, p in now.items()}, None)
+        return prior.images[view][0], prior.valid[view][0]
+
+    def _hands(self, tcp: NDArray[np.float64]) -> dict[str, NDArray[np.bool_]]:
+        K = tcp.shape[0] - 1
+        out: dict[str, NDArray[np.bool_]] = {}
+        for view in self.cameras.views:
+            h, w = view.model.height, view.model.width
+            if view.arm is not None:
+                out[view.name] = np.ones((K, h, w), bool)
+                continue
+            uv, _ = view.model.project(tcp[:, :, :3, 3].reshape(-1, 3))
+            uv = np.nan_to_num(uv.reshape(K + 1, 2, 2), nan=-1e4).clip(-1e4, 1e4)
+            radius = max(1, round(HAND_REACH * min(h, w)))
+            canvas = np.zeros((h, w), np.uint8)
+            masks = np.zeros((K, h, w), bool)
+            for i in range(1, K + 1):
+                for side in range(2):
+                    a = tuple(int(round(c)) for c in uv[i - 1, side])
+                    b = tuple(int(round(c)) for c in uv[i, side])
+                    cv2.line(canvas, a, b, 1, thickness=2 * radius + 1)
+                masks[i - 1] = canvas > 0
+            out[view.name] = masks
+        return out
 
     def _memory(
         self,

@@ -73,7 +73,7 @@ class CompositeConfig:
 
 # Base channel layout (see cache.base_channels): prior 0-2, prior valid 3, current 4-6, carry L 7-9, valid 10,
 # carry R 11-13, valid 14, part one-hot 15-18 (L arm, L fingers, R arm, R fingers), shade 19, depth 20,
-# memory 21-23, memory valid 24.
+# memory 21-23, memory valid 24, hand region 25.
 _PARTS, _SHADE, _DEPTH = slice(15, 19), slice(19, 20), slice(20, 21)
 
 
@@ -131,6 +131,14 @@ def blend(
     cands, valid = candidates(x, generated, plate, scal[:, 5])
     logits = gates.masked_fill(valid < 0.5, -1e4)
     weights = torch.softmax(logits, 1)
+    # Away from the hands nothing moves: the prior where it has the pixel, else the memory; the gates decide
+    # only near the tools' paths (and where neither layer has the pixel, e.g. where the robot was all round).
+    prior_ok, memory_ok = valid[:, 0], valid[:, 5]
+    kept = torch.zeros_like(weights)
+    kept[:, 0] = prior_ok
+    kept[:, 5] = (1 - prior_ok) * memory_ok
+    free = ((x[:, 25] > 0.5) | ((prior_ok + memory_ok) < 0.5)).float()[:, None]
+    weights = free * weights + (1 - free) * kept
     scene = (weights[:, :, None] * cands).sum(1)
     parts = x[:, _PARTS]
     robot = painter(parts, x[:, _SHADE], x[:, _DEPTH], scal[:, 5])
@@ -202,6 +210,7 @@ class CompositeWorldModel(nn.Module):
                     np.broadcast_to(
                         (layers.memory_valid[v] * np.uint8(255)).astype(np.uint8)[None, None], (K, 1, *parts.shape[1:])
                     ),
+                    (layers.hands[v] * np.uint8(255)).astype(np.uint8)[:, None],
                 ],
                 1,
             )

@@ -27,8 +27,8 @@ N_PARTS = 5  # background, left arm, left fingers, right arm, right fingers
 CANDIDATES = ("prior", "carry_left", "carry_right", "generated", "plate", "memory")
 N_VIEWS = 3
 # prior 3 + valid 1, current 3, carry L 3 + 1, carry R 3 + 1, parts one-hot 4, shade 1, depth 1,
-# memory 3 + valid 1, flags: holding L/R, released L/R, k/K (5), view one-hot 3, commanded grips L/R 2
-IN_CHANNELS = 4 + 3 + 4 + 4 + 4 + 1 + 1 + 4 + 5 + N_VIEWS + 2
+# memory 3 + valid 1, hand region 1, flags: holding L/R, released L/R, k/K (5), view one-hot 3, commanded grips L/R 2
+IN_CHANNELS = 4 + 3 + 4 + 4 + 4 + 1 + 1 + 4 + 1 + 5 + N_VIEWS + 2
 
 
 def _conv(cin: int, cout: int) -> nn.Sequential:
