@@ -224,8 +224,8 @@ class LayerBuilder:
             masks = np.zeros((K, h, w), bool)
             for i in range(1, K + 1):
                 for side in range(2):
-                    a = tuple(int(round(c)) for c in uv[i - 1, side])
-                    b = tuple(int(round(c)) for c in uv[i, side])
+                    a = tuple(int(np.rint(c)) for c in uv[i - 1, side])
+                    b = tuple(int(np.rint(c)) for c in uv[i, side])
                     cv2.line(canvas, a, b, 1, thickness=2 * radius + 1)
                 masks[i - 1] = canvas > 0
             out[view.name] = masks
