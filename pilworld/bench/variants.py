@@ -76,7 +76,7 @@ def standard_variants() -> list[ModelVariant]:
         ModelVariant(
             "pilworld_v2",
             "PiL-World v2 (Γ⁺ composite, predicted state; issue #21, in progress)",
-            bench_model("composite_v2c"),
+            bench_model("composite_v2"),
             adapter="none",
             role="model",
             note="docs/world_model.md, 'World model v2': not yet the default (it does not yet predict outcomes)",

@@ -235,7 +235,7 @@ def register(sub: Any) -> None:
     cl.add_argument(
         "--models",
         default="",
-        help="NAME=FOLDER,... (default: v1 = shipped sim_small, v2 = weights/bench/composite_v2c); ratios to the first",
+        help="NAME=FOLDER,... (default: v1 = shipped sim_small, v2 = weights/bench/composite_v2); ratios to the first",
     )
     cl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     cl.add_argument("--task", default="sort_cubes", help="task of the start and of the adapter (default sort_cubes)")
@@ -463,7 +463,7 @@ def _chunk_latency(args: argparse.Namespace) -> int:
     from pilworld.bench.variants import bench_model
     from pilworld.world_model import V1_CHECKPOINT
 
-    text = args.models or f"v1={V1_CHECKPOINT},v2={bench_model('composite_v2c')}"
+    text = args.models or f"v1={V1_CHECKPOINT},v2={bench_model('composite_v2')}"
     result = run_chunk_latency(parse_models(text), rig=args.rig, task=args.task, repeats=args.repeats)
     for name, m in result["models"].items():
         print(f"{name:>12}: median {m['median_ms']:.1f} ms, p90 {m['p90_ms']:.1f} ms, ×{m['ratio_to_first']:.2f}")

@@ -26,7 +26,7 @@ from torch.nn import functional as F
 from pilworld.config.rig import RigConfig
 from pilworld.types import DEFAULT_VIEWS, ChunkSpec
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo
-from pilworld.world_model.composite.cache import DEPTH_SCALE, GRIPS
+from pilworld.world_model.composite.cache import DEPTH_SCALE, GRIPS, LAYERS_VERSION
 from pilworld.world_model.composite.layers import ChunkLayers, LayerBuilder
 from pilworld.world_model.composite.net import N_VIEWS, CompositeUNet, RobotPainter
 
@@ -44,6 +44,7 @@ class CompositeConfig:
     width: int = 16
     future: int = 15
     history: int = 15  # H_h: one round of frames, the head view's memory of what the robot covers now
+    layout: int = LAYERS_VERSION  # the layer code's version the weights were trained with (their input channels)
 
     def __post_init__(self) -> None:
         if self.image_size % self.work_size or self.work_size % 4:
@@ -64,6 +65,11 @@ class CompositeConfig:
         unknown = sorted(set(d) - known)
         if unknown:
             raise ValueError(f"composite config: unknown keys {unknown}")
+        if d.get("layout", 0) != LAYERS_VERSION:
+            raise ValueError(
+                f"composite config: the weights were trained on layer version {d.get('layout', 'before 4')}, this code "
+                f"builds version {LAYERS_VERSION}; retrain them (pilworld train composite) or use the matching release"
+            )
         return cls(**{**d, "views": tuple(d.get("views", DEFAULT_VIEWS))})
 
     def rig_path(self) -> Path:

@@ -159,3 +159,14 @@ def test_the_imagined_branch_reports_the_predicted_state(model: CompositeWorldMo
     assert all(o.state[LEFT_GRIP] == pytest.approx(0.42) for o in seg.observations)
     env.step(chunk)
     assert wrapped.seen_state[LEFT_GRIP] == pytest.approx(0.42)  # the next round starts from it
+
+
+def test_weights_of_other_layer_code_are_refused(model: CompositeWorldModel, tmp_path: Path) -> None:
+    import json
+
+    folder = save_composite(model, tmp_path / "old")
+    cfg = json.loads((folder / "config.json").read_text())
+    del cfg["config"]["layout"]
+    (folder / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ValueError, match="layer version"):
+        load_composite(folder)
