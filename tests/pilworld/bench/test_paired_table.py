@@ -48,7 +48,8 @@ def _one_pair(quick: bool, *, subtasks: int | None = None, seed: int | None = No
 def test_select_variants_by_mode_and_by_name() -> None:
     assert [v.name for v in select_variants(True)] == ["pilworld", "ctrl_world"]
     assert [v.name for v in select_variants(False)] == [v.name for v in standard_variants()]
-    assert len(select_variants(False)) == 5
+    assert len(select_variants(False)) == 6  # with the v2 row (issue #21)
+    assert select_variants(False)[1].name == "pilworld_v2"
     # The shipped model is always there (first when not named), named variants keep their order.
     assert [v.name for v in select_variants(True, ["no_history"])] == ["pilworld", "no_history"]
     assert [v.name for v in select_variants(False, ["success_only", "no_history"])] == [

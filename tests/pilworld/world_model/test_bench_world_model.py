@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import torch
 
 import pilworld.collection.collect as collect_mod
 from pilworld.bench.world_model import (
@@ -117,18 +118,27 @@ def test_a_smaller_model_is_scored_at_its_own_size(heldout: Path, cache: Path) -
     assert out["dataset_image_size"] == [[128, 128]] * 3
 
 
-def test_a_model_wanting_more_history_than_the_clips_is_refused(heldout: Path, cache: Path) -> None:
-    with pytest.raises(ValueError, match="no_history: wants H_h=9"):
-        run_world_model_bench(
-            FrozenWorldModel(_info()),
-            heldout=heldout,
-            no_history=FrozenWorldModel(_info(history=9)),
-            clips=1,
-            repeats=1,
-            rig=SIM,
-            progress=False,
-            cache_dir=cache,
-        )
+def test_a_model_wanting_more_history_than_the_clips_gets_invalid_padding(heldout: Path, cache: Path) -> None:
+    """As in the imagined branch's memory at a rollout's start: the missing front frames are flagged invalid."""
+    seen: list[torch.Tensor] = []
+
+    class Spy(FrozenWorldModel):
+        def predict_batch(self, batch, *, steps=None, seed=0):  # type: ignore[no-untyped-def]
+            seen.append(batch.history_valid.clone())
+            assert batch.history.shape[2] == 9 and batch.state is not None
+            return super().predict_batch(batch, steps=steps, seed=seed)
+
+    run_world_model_bench(
+        FrozenWorldModel(_info()),
+        heldout=heldout,
+        no_history=Spy(_info(history=9)),
+        clips=1,
+        repeats=1,
+        rig=SIM,
+        progress=False,
+        cache_dir=cache,
+    )
+    assert seen and not seen[0][:, :4].any()
     swapped = dataclasses.replace(_info(), views=tuple(reversed(_info().views)))
     with pytest.raises(ValueError, match="no_history: views"):
         run_world_model_bench(
