@@ -48,14 +48,11 @@ def base_channels(layers: Any, view: str, k: int, current: NDArray[np.uint8], si
     """(BASE_CHANNELS, size, size) uint8 of one view and frame index ``k`` (0-based) of ``layers``."""
 
     def rgb(x: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        out: NDArray[np.uint8] = cv2.resize(np.ascontiguousarray(x), (size, size), interpolation=cv2.INTER_AREA)
-        return out
+        return np.asarray(cv2.resize(np.ascontiguousarray(x), (size, size), interpolation=cv2.INTER_AREA), np.uint8)
 
     def mono(x: NDArray[Any]) -> NDArray[np.uint8]:
-        out: NDArray[np.uint8] = cv2.resize(
-            np.ascontiguousarray(x.astype(np.uint8)), (size, size), interpolation=cv2.INTER_AREA
-        )
-        return out
+        small = cv2.resize(np.ascontiguousarray(x.astype(np.uint8)), (size, size), interpolation=cv2.INTER_AREA)
+        return np.asarray(small, np.uint8)
 
     parts = layers.parts[view][k]
     chans = [

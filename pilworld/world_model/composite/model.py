@@ -163,6 +163,7 @@ class CompositeWorldModel(nn.Module):
         self.painter = RobotPainter()
         # The head camera's empty scene (table and background, no robot, no objects), RGB in [0, 1]: set from
         # the training data (robot-masked per-pixel median, :func:`.plate.estimate_plate`), saved with the weights.
+        self.plate: torch.Tensor
         self.register_buffer("plate", torch.zeros(3, config.image_size, config.image_size))
         self._rig = rig
         self._builder: LayerBuilder | None = None
