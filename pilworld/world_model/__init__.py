@@ -9,5 +9,5 @@ from __future__ import annotations
 from pathlib import Path
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "sim_small"
-# v1, the paper-style latent model (marker Γ, 8× VAE, 1-step flow): kept for comparison (bench chunk-latency, RESULTS.md).
+# v1, the paper-style latent model (marker Γ, 8× VAE, 1-step flow), named for comparisons (bench chunk-latency).
 V1_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "sim_small"
