@@ -146,9 +146,7 @@ def run_paired_bench(
     t0 = time.monotonic()
     proto = protocol(quick, subtasks=subtasks, seed=seed)
     chosen = select_variants(quick, variants)
-    results = evaluate_variants(
-        chosen, proto, out, rig=rig, workers=workers, progress=progress, real_from=real_from
-    )
+    results = evaluate_variants(chosen, proto, out, rig=rig, workers=workers, progress=progress, real_from=real_from)
     rows = {name: summarize_variant(r) for name, r in results.items()}
     shipped = rows["pilworld"]
     out_json: dict[str, Any] = {
