@@ -254,7 +254,7 @@ class CompositeWorldModel(nn.Module):
         base, scal = self.base_full(layers, dict(request.current))
         x = base.float() / 255.0
         s = self.config.work_size
-        small = F.adaptive_avg_pool2d(base.float(), s)  # the network's input, as in training (area-averaged)
+        small = F.adaptive_avg_pool2d(x, s) * 255.0  # the network's input, as in training (area-averaged)
         inp, cmd = net_inputs(small, scal)
         gates, generated, grips = self.net(inp, cmd)
         out = blend(x, scal, gates, generated, self.painter, self.plate)
