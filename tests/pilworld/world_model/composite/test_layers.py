@@ -122,3 +122,20 @@ def test_memory_remembers_what_the_robot_covers_now(rig32: RigConfig) -> None:
     # without history states the memory is the current frame's robot-free pixels only
     bare = builder(current, state, stride, history, None, None)
     assert not bare.memory_valid["cam_high"][now > 0].any()
+
+
+def test_the_hand_region_follows_the_tool_path(rig32: RigConfig) -> None:
+    rig = RigConfig.model_validate({**rig32.model_dump(), "image_size": {"width": 128, "height": 128}})
+    builder = LayerBuilder(rig)
+    state, stride = _moving_chunk(1.0, 1.0)
+    layers = builder({v: np.zeros((128, 128, 3), np.uint8) for v in rig.cameras}, state, stride)
+    hands = layers.hands["cam_high"]
+    tcp = rig.kinematics.tcp_poses(np.concatenate([state[None], layers.poses]))[:, 0, :3, 3]
+    uv, _ = rig.head_camera_model.project(tcp)
+    for k in (0, 7, 14):
+        u, v = np.round(uv[k + 1]).astype(int)
+        if 0 <= u < 128 and 0 <= v < 128:
+            assert hands[k, v, u]  # the tool point of frame k is inside its region
+    assert hands[-1].sum() >= hands[0].sum()  # the region grows along the path
+    assert hands[-1].mean() < 0.5  # and is not the whole image
+    assert layers.hands["cam_left_wrist"].all()  # moving views are free everywhere
