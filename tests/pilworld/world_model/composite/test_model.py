@@ -170,3 +170,21 @@ def test_weights_of_other_layer_code_are_refused(model: CompositeWorldModel, tmp
     (folder / "config.json").write_text(json.dumps(cfg))
     with pytest.raises(ValueError, match="layer version"):
         load_composite(folder)
+
+
+def test_away_from_the_hands_the_scene_is_kept_whatever_the_gates_say(model: CompositeWorldModel) -> None:
+    req = _request(model)
+    layers = model.builder(dict(req.current), req.state, req.actions)  # type: ignore[arg-type]
+    with torch.no_grad():
+        model.net.head.weight.zero_()
+        model.net.head.bias.zero_()  # type: ignore[union-attr]
+        model.net.head.bias[3] = 50.0  # type: ignore[index]  # every gate on the generated fill
+    frames = model.predict(req)
+    v = "cam_high"
+    kept = layers.prior_valid[v] & (layers.parts[v] == 0) & ~layers.hands[v]
+    assert kept.any()
+    diff = np.abs(frames[v].astype(int) - layers.prior[v].astype(int))[kept]
+    assert diff.max() <= 1
+    free = layers.prior_valid[v] & (layers.parts[v] == 0) & layers.hands[v]
+    if free.any():  # inside the hand region the gates rule: the (untrained) fill differs from the prior
+        assert np.abs(frames[v].astype(int) - layers.prior[v].astype(int))[free].mean() > 1
