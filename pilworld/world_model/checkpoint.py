@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import torch
 from safetensors.torch import load_file, save_file
+from torch import nn
 
 from pilworld.data.atomic import atomic_write, write_json
 from pilworld.world_model.config import WorldModelConfig
@@ -29,14 +31,33 @@ def save_tensors(path: Path, tensors: dict[str, torch.Tensor], metadata: dict[st
     atomic_write(path, lambda tmp: save_file(clean, str(tmp), metadata=metadata))
 
 
-def save_model(model: PilWorldModel, folder: str | Path, *, dtype: torch.dtype = torch.float32) -> Path:
-    """Write ``model`` (weights cast to ``dtype``; float16 halves a shipped file) with its config."""
+def save_folder(
+    model: nn.Module, folder: str | Path, fmt: str, config: dict[str, Any], *, dtype: torch.dtype = torch.float32
+) -> Path:
+    """Write ``model``'s weights (cast to ``dtype``) and ``config`` under the folder format ``fmt``."""
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     state = {k: v.to(dtype) if v.is_floating_point() else v for k, v in model.state_dict().items()}
-    save_tensors(out / WEIGHTS_FILE, state, {"format": FORMAT})
-    write_json(out / CONFIG_FILE, {"format": FORMAT, "config": model.config.to_dict()})
+    save_tensors(out / WEIGHTS_FILE, state, {"format": fmt})
+    write_json(out / CONFIG_FILE, {"format": fmt, "config": config})
     return out
+
+
+def load_weights(model: nn.Module, weights: Path) -> None:
+    """Load a folder's weights (as float32) into ``model``; ``ValueError`` when they do not fit its config."""
+    if not weights.is_file():
+        raise FileNotFoundError(f"{weights}: missing world-model weights")
+    state = {k: v.float() if v.is_floating_point() else v for k, v in load_file(str(weights)).items()}
+    missing, unexpected = model.load_state_dict(state, strict=False)
+    if missing or unexpected:
+        raise ValueError(
+            f"{weights}: weights do not fit the config (missing {missing[:5]}, unexpected {unexpected[:5]})"
+        )
+
+
+def save_model(model: PilWorldModel, folder: str | Path, *, dtype: torch.dtype = torch.float32) -> Path:
+    """Write ``model`` (weights cast to ``dtype``; float16 halves a shipped file) with its config."""
+    return save_folder(model, folder, FORMAT, model.config.to_dict(), dtype=dtype)
 
 
 def read_config(folder: str | Path) -> WorldModelConfig:
@@ -53,16 +74,8 @@ def load_model(folder: str | Path, *, device: str | torch.device = "cpu") -> Pil
     """The base model of a folder (no adapter), in float32, in eval mode."""
     folder = Path(folder)
     config = read_config(folder)
-    weights = folder / WEIGHTS_FILE
-    if not weights.is_file():
-        raise FileNotFoundError(f"{weights}: missing world-model weights")
     model = PilWorldModel(config)
-    state = {k: v.float() if v.is_floating_point() else v for k, v in load_file(str(weights)).items()}
-    missing, unexpected = model.load_state_dict(state, strict=False)
-    if missing or unexpected:
-        raise ValueError(
-            f"{weights}: weights do not fit the config (missing {missing[:5]}, unexpected {unexpected[:5]})"
-        )
+    load_weights(model, folder / WEIGHTS_FILE)
     return model.to(device).eval()
 
 
