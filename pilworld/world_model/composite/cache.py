@@ -11,6 +11,7 @@ identical; a cache whose recorded settings differ from the requested ones is ref
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -44,48 +45,60 @@ class CacheSpec:
     layers_version: int = LAYERS_VERSION  # a cache made by other layer code is refused, not silently reused
 
 
-def base_channels(layers: Any, view: str, k: int, current: NDArray[np.uint8], size: int) -> NDArray[np.uint8]:
-    """(BASE_CHANNELS, size, size) uint8 of one view and frame index ``k`` (0-based) of ``layers``."""
+def chunk_channels(
+    layers: Any, current: dict[str, NDArray[np.uint8]], views: Sequence[str]
+) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+    """Base channels (V·K, BASE_CHANNELS, H, W) uint8 and scalars (V·K, SCALARS) of one chunk, view-major.
 
-    def rgb(x: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        return np.asarray(cv2.resize(np.ascontiguousarray(x), (size, size), interpolation=cv2.INTER_AREA), np.uint8)
+    The one definition of the network's input layout: inference uses it at full resolution, the cache
+    area-downsamples its rows.
+    """
+    K = layers.poses.shape[0]
+    rows, scal = [], []
+    for vi, v in enumerate(views):
+        parts = layers.parts[v]
+        size = parts.shape[1:]
+        chans = np.concatenate(
+            [
+                layers.prior[v].transpose(0, 3, 1, 2),
+                (layers.prior_valid[v] * np.uint8(255))[:, None].astype(np.uint8),
+                np.broadcast_to(np.asarray(current[v]).transpose(2, 0, 1)[None], (K, 3, *size)),
+                layers.carry["left"][v].transpose(0, 3, 1, 2),
+                (layers.carry_valid["left"][v] * np.uint8(255))[:, None].astype(np.uint8),
+                layers.carry["right"][v].transpose(0, 3, 1, 2),
+                (layers.carry_valid["right"][v] * np.uint8(255))[:, None].astype(np.uint8),
+                np.stack([(parts == p) * np.uint8(255) for p in (1, 2, 3, 4)], 1).astype(np.uint8),
+                layers.shade[v][:, None],
+                np.clip(layers.depth[v] / DEPTH_SCALE * 255, 0, 255).astype(np.uint8)[:, None],
+                np.broadcast_to(layers.memory[v].transpose(2, 0, 1)[None], (K, 3, *size)),
+                np.broadcast_to((layers.memory_valid[v] * np.uint8(255)).astype(np.uint8)[None, None], (K, 1, *size)),
+                (layers.hands[v] * np.uint8(255)).astype(np.uint8)[:, None],
+            ],
+            1,
+        )
+        rows.append(chans)
+        for k in range(K):
+            scal.append(
+                [
+                    *layers.holding[k],
+                    *layers.released[k],
+                    (k + 1) / K,
+                    vi,
+                    layers.poses[k, GRIPS[0]],
+                    layers.poses[k, GRIPS[1]],
+                ]
+            )
+    return np.concatenate(rows, 0), np.asarray(scal, dtype=np.float32)
 
-    def mono(x: NDArray[Any]) -> NDArray[np.uint8]:
-        small = cv2.resize(np.ascontiguousarray(x.astype(np.uint8)), (size, size), interpolation=cv2.INTER_AREA)
-        return np.asarray(small, np.uint8)
 
-    parts = layers.parts[view][k]
-    chans = [
-        rgb(layers.prior[view][k]).transpose(2, 0, 1),
-        mono(layers.prior_valid[view][k] * 255)[None],
-        rgb(current).transpose(2, 0, 1),
-        rgb(layers.carry["left"][view][k]).transpose(2, 0, 1),
-        mono(layers.carry_valid["left"][view][k] * 255)[None],
-        rgb(layers.carry["right"][view][k]).transpose(2, 0, 1),
-        mono(layers.carry_valid["right"][view][k] * 255)[None],
-        np.stack([mono((parts == p) * 255) for p in (1, 2, 3, 4)]),
-        mono(layers.shade[view][k])[None],
-        mono(np.clip(layers.depth[view][k] / DEPTH_SCALE * 255, 0, 255))[None],
-        rgb(layers.memory[view]).transpose(2, 0, 1),
-        mono(layers.memory_valid[view] * 255)[None],
-        mono(layers.hands[view][k] * 255)[None],
-    ]
-    return np.concatenate(chans, 0)
-
-
-def scalars(layers: Any, k: int, view_index: int, K: int) -> NDArray[np.float32]:
-    return np.array(
+def downsampled(channels: NDArray[np.uint8], size: int) -> NDArray[np.uint8]:
+    """(C, H, W) uint8 → (C, size, size), area-averaged one channel at a time (OpenCV rounds a many-channel
+    resize differently, by ±1, from a one-channel one)."""
+    return np.stack(
         [
-            layers.holding[k, 0],
-            layers.holding[k, 1],
-            layers.released[k, 0],
-            layers.released[k, 1],
-            (k + 1) / K,
-            view_index,
-            layers.poses[k, GRIPS[0]],
-            layers.poses[k, GRIPS[1]],
-        ],
-        dtype=np.float32,
+            np.asarray(cv2.resize(np.ascontiguousarray(c), (size, size), interpolation=cv2.INTER_AREA), np.uint8)
+            for c in channels
+        ]
     )
 
 
@@ -136,6 +149,7 @@ def _build(
         it["history_valid"].numpy(),
     )
     K = layers.poses.shape[0]
+    base, sca_all = chunk_channels(layers, cur, views)
     n = len(ks) * len(views)
     inp = np.empty((n, BASE_CHANNELS, spec.size, spec.size), np.uint8)
     tgt = np.empty((n, 3, spec.size, spec.size), np.uint8)
@@ -144,9 +158,9 @@ def _build(
     i = 0
     for vi, v in enumerate(views):
         for k in ks:
-            inp[i] = base_channels(layers, v, k, cur[v], spec.size)
+            inp[i] = downsampled(base[vi * K + k], spec.size)
             tgt[i] = cv2.resize(fut[v][k], (spec.size, spec.size), interpolation=cv2.INTER_AREA).transpose(2, 0, 1)
-            sca[i] = scalars(layers, k, vi, K)
+            sca[i] = sca_all[vi * K + k]
             grip[i] = state_all[fut_idx[k], GRIPS]
             i += 1
     return row, inp, tgt, sca, grip

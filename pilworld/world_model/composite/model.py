@@ -26,8 +26,8 @@ from torch.nn import functional as F
 from pilworld.config.rig import RigConfig
 from pilworld.types import DEFAULT_VIEWS, ChunkSpec
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo
-from pilworld.world_model.composite.cache import DEPTH_SCALE, GRIPS, LAYERS_VERSION
-from pilworld.world_model.composite.layers import ChunkLayers, LayerBuilder
+from pilworld.world_model.composite.cache import GRIPS, LAYERS_VERSION, chunk_channels
+from pilworld.world_model.composite.layers import LayerBuilder
 from pilworld.world_model.composite.net import N_VIEWS, CompositeUNet, RobotPainter
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
@@ -77,7 +77,7 @@ class CompositeConfig:
         return p if p.is_absolute() else REPO_ROOT / p
 
 
-# Base channel layout (see cache.base_channels): prior 0-2, prior valid 3, current 4-6, carry L 7-9, valid 10,
+# Base channel layout (see cache.chunk_channels): prior 0-2, prior valid 3, current 4-6, carry L 7-9, valid 10,
 # carry R 11-13, valid 14, part one-hot 15-18 (L arm, L fingers, R arm, R fingers), shade 19, depth 20,
 # memory 21-23, memory valid 24, hand region 25.
 _PARTS, _SHADE, _DEPTH = slice(15, 19), slice(19, 20), slice(20, 21)
@@ -193,48 +193,6 @@ class CompositeWorldModel(nn.Module):
 
     # ------------------------------------------------------------------ inference
 
-    def base_full(
-        self, layers: ChunkLayers, current: dict[str, NDArray[np.uint8]]
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Full-resolution base channels (V·K, 21, H, W) uint8 and scalars (V·K, 8) of one chunk."""
-        K = layers.poses.shape[0]
-        rows, scal = [], []
-        for vi, v in enumerate(self.config.views):
-            parts = layers.parts[v]
-            chans = np.concatenate(
-                [
-                    layers.prior[v].transpose(0, 3, 1, 2),
-                    (layers.prior_valid[v] * np.uint8(255))[:, None].astype(np.uint8),
-                    np.broadcast_to(np.asarray(current[v]).transpose(2, 0, 1)[None], (K, 3, *parts.shape[1:])),
-                    layers.carry["left"][v].transpose(0, 3, 1, 2),
-                    (layers.carry_valid["left"][v] * np.uint8(255))[:, None].astype(np.uint8),
-                    layers.carry["right"][v].transpose(0, 3, 1, 2),
-                    (layers.carry_valid["right"][v] * np.uint8(255))[:, None].astype(np.uint8),
-                    np.stack([(parts == p) * np.uint8(255) for p in (1, 2, 3, 4)], 1).astype(np.uint8),
-                    layers.shade[v][:, None],
-                    np.clip(layers.depth[v] / DEPTH_SCALE * 255, 0, 255).astype(np.uint8)[:, None],
-                    np.broadcast_to(layers.memory[v].transpose(2, 0, 1)[None], (K, 3, *parts.shape[1:])),
-                    np.broadcast_to(
-                        (layers.memory_valid[v] * np.uint8(255)).astype(np.uint8)[None, None], (K, 1, *parts.shape[1:])
-                    ),
-                    (layers.hands[v] * np.uint8(255)).astype(np.uint8)[:, None],
-                ],
-                1,
-            )
-            rows.append(chans)
-            for k in range(K):
-                scal.append(
-                    [
-                        *layers.holding[k],
-                        *layers.released[k],
-                        (k + 1) / K,
-                        vi,
-                        layers.poses[k, GRIPS[0]],
-                        layers.poses[k, GRIPS[1]],
-                    ]
-                )
-        return torch.from_numpy(np.concatenate(rows, 0)), torch.tensor(scal, dtype=torch.float32)
-
     @torch.no_grad()
     def predict_with_state(
         self, request: PredictRequest, *, steps: int | None = None, seed: int = 0
@@ -251,7 +209,8 @@ class CompositeWorldModel(nn.Module):
             request.history_state,
             request.history_valid,
         )
-        base, scal = self.base_full(layers, dict(request.current))
+        base_np, scal_np = chunk_channels(layers, dict(request.current), self.config.views)
+        base, scal = torch.from_numpy(base_np), torch.from_numpy(scal_np)
         x = base.float() / 255.0
         s = self.config.work_size
         small = F.adaptive_avg_pool2d(x, s) * 255.0  # the network's input, as in training (area-averaged)
