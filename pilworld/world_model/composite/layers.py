@@ -124,7 +124,11 @@ class LayerBuilder:
                 opened = np.flatnonzero(chunk[:, grip_index] >= HOLD_MAX)
                 until = int(opened[0]) if opened.size else len(chunk)
                 chunk[:until, grip_index] = np.maximum(chunk[:until, grip_index], state[grip_index])
-        cf = self.gamma(chunk, current_images=current_images, current_state=state)
+        # The robot's pixels now, rendered once: Γ⁺'s prior, the memory and a grasp's wrist view all remove them.
+        assert self.gamma.renderer is not None
+        now_parts = self.gamma.renderer.render(state[None], depth=False, shaded=False).parts
+        now_masks = {v: p[0] > 0 for v, p in now_parts.items()}
+        cf = self.gamma(chunk, current_images=current_images, current_state=state, current_robot_masks=now_masks)
         assert cf.render is not None and cf.prior is not None
         assert cf.render.shaded is not None and cf.render.depth is not None
         poses = self.gamma_poses(chunk, state)
@@ -172,12 +176,11 @@ class LayerBuilder:
                             carry[side][name][i - 1] = src
                             carry_valid[side][name][i - 1] = True
                         else:
-                            grasp_view[name] = grasp_view.get(name) or self._view_at(
-                                current_images, state, seq[g], name
-                            )
+                            if name not in grasp_view:
+                                grasp_view[name] = self._view_at(current_images, state, seq[g], name, now_masks)
                             carry[side][name][i - 1], carry_valid[side][name][i - 1] = grasp_view[name]
         hands = self._hands(tcp)
-        memory, memory_valid = self._memory(current_images, state, history_images, history_states, history_valid)
+        memory, memory_valid = self._memory(current_images, now_parts, history_images, history_states, history_valid)
         parts = cf.render.parts
         shade = {v: np.asarray(cf.render.shaded[v]).max(axis=-1) for v in self.views}
         return ChunkLayers(
@@ -198,15 +201,19 @@ class LayerBuilder:
         )
 
     def _view_at(
-        self, current: dict[str, U8], state: NDArray[np.float64], q: NDArray[np.float64], view: str
+        self,
+        current: dict[str, U8],
+        state: NDArray[np.float64],
+        q: NDArray[np.float64],
+        view: str,
+        now_masks: dict[str, NDArray[np.bool_]],
     ) -> tuple[U8, NDArray[np.bool_]]:
         """The current frame of ``view`` reprojected to the pose ``q``, keeping what is near the fingers there.
 
         Γ⁺'s prior leaves the future robot's surroundings empty; what a gripper grasps sits exactly there.
         """
-        assert self.gamma.reprojector is not None and self.gamma.renderer is not None
-        now = self.gamma.renderer.render(state[None], depth=False, shaded=False).parts
-        prior = self.gamma.reprojector(current, state, q[None], {v: p[0] > 0 for v, p in now.items()}, None)
+        assert self.gamma.reprojector is not None
+        prior = self.gamma.reprojector(current, state, q[None], now_masks, None)
         return prior.images[view][0], prior.valid[view][0]
 
     def _hands(self, tcp: NDArray[np.float64]) -> dict[str, NDArray[np.bool_]]:
@@ -234,7 +241,7 @@ class LayerBuilder:
     def _memory(
         self,
         current: dict[str, U8],
-        state: NDArray[np.float64],
+        now_parts: dict[str, U8],
         history: dict[str, U8] | None,
         states: NDArray[np.floating] | None,
         valid: NDArray[np.bool_] | None,
@@ -251,10 +258,18 @@ class LayerBuilder:
         frames = [] if history is None or states is None else list(zip(history[head], states, strict=True))
         if valid is not None and frames:
             frames = [f for f, keep in zip(frames, np.asarray(valid, bool), strict=True) if keep]
-        frames.append((np.asarray(current[head]), state))
         assert self.gamma.renderer is not None
-        q = np.stack([np.asarray(st, np.float64) for _, st in frames])
-        parts = self.gamma.renderer.render(q, depth=False, shaded=False).parts[head]
+        parts = (
+            []
+            if not frames
+            else list(
+                self.gamma.renderer.render(
+                    np.stack([np.asarray(st, np.float64) for _, st in frames]), depth=False, shaded=False
+                ).parts[head]
+            )
+        )
+        frames.append((np.asarray(current[head]), None))
+        parts.append(now_parts[head][0])  # the current frame last: it wins where it sees the scene
         kernel = np.ones((5, 5), np.uint8)
         mem, seen = out[head], ok[head]
         for (img, _), p in zip(frames, parts, strict=True):
