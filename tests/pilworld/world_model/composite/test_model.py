@@ -17,6 +17,7 @@ from pilworld.world_model.base import PredictRequest
 from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.checkpoint import is_composite, load_composite, save_composite
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
+from pilworld.world_model.composite.net import CANDIDATES
 
 SPEC = ChunkSpec()
 LEFT_ARM, LEFT_GRIP = ARM_LAYOUT["left"]
@@ -43,6 +44,14 @@ def _request(model: CompositeWorldModel, state: np.ndarray | None = None) -> Pre
         instruction="sort the cubes.",
         state=q,
     )
+
+
+def _force_gate(model: CompositeWorldModel, candidate: int) -> None:
+    """Make every gate pick one candidate, whatever the input."""
+    with torch.no_grad():
+        model.net.head.weight.zero_()
+        model.net.head.bias.zero_()  # type: ignore[union-attr]
+        model.net.head.bias[candidate] = 50.0  # type: ignore[index]
 
 
 def test_predict_with_state_shapes_and_arm_state(model: CompositeWorldModel) -> None:
@@ -75,10 +84,7 @@ def test_robot_pixels_come_from_the_painter(model: CompositeWorldModel) -> None:
 def test_a_confident_prior_gate_copies_the_static_scene(model: CompositeWorldModel) -> None:
     req = _request(model)
     layers = model.builder(dict(req.current), req.state, req.actions)  # type: ignore[arg-type]
-    with torch.no_grad():
-        model.net.head.weight.zero_()
-        model.net.head.bias.zero_()  # type: ignore[union-attr]
-        model.net.head.bias[0] = 50.0  # type: ignore[index]
+    _force_gate(model, CANDIDATES.index("prior"))
     frames = model.predict(req)
     v = "cam_high"
     keep = layers.prior_valid[v] & (layers.parts[v] == 0)
@@ -175,10 +181,7 @@ def test_weights_of_other_layer_code_are_refused(model: CompositeWorldModel, tmp
 def test_away_from_the_hands_the_scene_is_kept_whatever_the_gates_say(model: CompositeWorldModel) -> None:
     req = _request(model)
     layers = model.builder(dict(req.current), req.state, req.actions)  # type: ignore[arg-type]
-    with torch.no_grad():
-        model.net.head.weight.zero_()
-        model.net.head.bias.zero_()  # type: ignore[union-attr]
-        model.net.head.bias[3] = 50.0  # type: ignore[index]  # every gate on the generated fill
+    _force_gate(model, CANDIDATES.index("generated"))  # every gate on the generated fill
     frames = model.predict(req)
     v = "cam_high"
     kept = layers.prior_valid[v] & (layers.parts[v] == 0) & ~layers.hands[v]
