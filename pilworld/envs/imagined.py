@@ -139,6 +139,9 @@ class ImaginedEnv:
             self.safety.reset(obs.state)
         self._obs = obs
         self._instruction = start.subtask.instruction  # conditions the world model
+        begin = getattr(self.model, "begin_rollout", None)
+        if callable(begin):  # a model that carries state across the rollout's chunks (v2: its tracked objects)
+            begin(dict(obs.images), obs.state, self._instruction)
         self._round = 0
         return obs
 

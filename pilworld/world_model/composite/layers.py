@@ -95,6 +95,7 @@ class LayerBuilder:
 
     def __init__(self, rig: RigConfig, spec: ChunkSpec | None = None) -> None:
         self.spec = spec or ChunkSpec()
+        self.rig = rig
         self.gamma = GammaPlus(rig, "render+prior", spec=self.spec)
         self.cameras = self.gamma.cameras
         self.kinematics = rig.kinematics
@@ -109,21 +110,28 @@ class LayerBuilder:
         history_images: dict[str, U8] | None = None,
         history_states: NDArray[np.floating] | None = None,
         history_valid: NDArray[np.bool_] | None = None,
+        resting: tuple[float | None, float | None] | None = None,
+        carry: bool = True,
     ) -> ChunkLayers:
-        """Layers of one chunk; ``history_*`` (H_h frames oldest first, their states and validity) feed ``memory``."""
+        """Layers of one chunk; ``history_*`` (H_h frames oldest first, their states and validity) feed ``memory``.
+
+        ``resting``: per side (left, right), the opening its fingers rest at on a held object (None: not
+        holding); default: any gripper whose measured opening is below :data:`HOLD_MAX` rests where it is.
+        """
         state = np.asarray(current_state, dtype=np.float64)
         stride = np.asarray(stride_actions, dtype=np.float64)
         if state.shape != (STATE_DIM,) or stride.ndim != 2 or stride.shape[1] != STATE_DIM:
             raise ValueError(f"layers: expected state (14,) and actions (K, 14), got {state.shape} and {stride.shape}")
         chunk = steps_from_stride(stride, state, self.spec)
-        for side in SIDES:
+        for si, side in enumerate(SIDES):
             # Fingers already resting on something stay at that opening until the gripper opens: the render
             # must not close them through what they hold (the command says 0, the object says its width).
             grip_index = ARM_LAYOUT[side][1]
-            if state[grip_index] < HOLD_MAX:
+            rest = (state[grip_index] if state[grip_index] < HOLD_MAX else None) if resting is None else resting[si]
+            if rest is not None:
                 opened = np.flatnonzero(chunk[:, grip_index] >= HOLD_MAX)
                 until = int(opened[0]) if opened.size else len(chunk)
-                chunk[:until, grip_index] = np.maximum(chunk[:until, grip_index], state[grip_index])
+                chunk[:until, grip_index] = np.maximum(chunk[:until, grip_index], rest)
         # The robot's pixels now, rendered once: Γ⁺'s prior, the memory and a grasp's wrist view all remove them.
         assert self.gamma.renderer is not None
         now_parts = self.gamma.renderer.render(state[None], depth=False, shaded=False).parts
@@ -148,7 +156,7 @@ class LayerBuilder:
                 img = np.zeros((K, h, w, 3), dtype=np.uint8)
                 ok = np.zeros((K, h, w), dtype=bool)
                 carry[side][view.name], carry_valid[side][view.name] = img, ok
-            if g is None:
+            if g is None or not carry:
                 continue
             grasp_view: dict[str, tuple[U8, NDArray[np.bool_]]] = {}
             for i in range(max(g, 1), K + 1):

@@ -24,11 +24,14 @@ from torch import nn
 from torch.nn import functional as F
 
 from pilworld.config.rig import RigConfig
-from pilworld.types import DEFAULT_VIEWS, ChunkSpec
+from pilworld.judges.vision_views import frame_cameras
+from pilworld.types import DEFAULT_VIEWS, HEAD_VIEW, ChunkSpec
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo
 from pilworld.world_model.composite.cache import GRIPS, LAYERS_VERSION, chunk_channels
-from pilworld.world_model.composite.layers import LayerBuilder
+from pilworld.world_model.composite.layers import ChunkLayers, LayerBuilder
 from pilworld.world_model.composite.net import N_VIEWS, CompositeUNet, RobotPainter
+from pilworld.world_model.composite.object_draw import draw_objects, erase_elsewhere
+from pilworld.world_model.composite.objects import ObjectScene, estimate_scene, spec_for
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 
@@ -45,6 +48,7 @@ class CompositeConfig:
     future: int = 15
     history: int = 15  # H_h: one round of frames, the head view's memory of what the robot covers now
     layout: int = LAYERS_VERSION  # the layer code's version the weights were trained with (their input channels)
+    objects: bool = True  # track the task's objects as rigid bodies (:mod:`.objects`); False: the blend alone
 
     def __post_init__(self) -> None:
         if self.image_size % self.work_size or self.work_size % 4:
@@ -81,6 +85,16 @@ class CompositeConfig:
 # carry R 11-13, valid 14, part one-hot 15-18 (L arm, L fingers, R arm, R fingers), shade 19, depth 20,
 # memory 21-23, memory valid 24, hand region 25.
 _PARTS, _SHADE, _DEPTH = slice(15, 19), slice(19, 20), slice(20, 21)
+
+
+def _table_colour(image: NDArray[np.uint8], plate: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A wrist view's empty scene: its table colour (moderately saturated, bright pixels), else the plate's."""
+    import cv2
+
+    hsv = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2HSV)
+    table = (hsv[..., 1] >= 18) & (hsv[..., 1] < 60) & (hsv[..., 2] > 120)
+    rgb = np.median(image[table], axis=0) if table.sum() > 50 else np.median(plate.reshape(-1, 3), axis=0)
+    return np.broadcast_to(rgb.astype(np.uint8), image.shape).copy()
 
 
 def net_inputs(base: torch.Tensor, scal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -167,6 +181,8 @@ class CompositeWorldModel(nn.Module):
         self.register_buffer("plate", torch.zeros(3, config.image_size, config.image_size))
         self._rig = rig
         self._builder: LayerBuilder | None = None
+        self._scene: ObjectScene | None = None  # the rollout's objects (begin_rollout), advanced per chunk
+        self._scene_key: tuple[str, NDArray[np.float32]] | None = None  # the request that continues it
 
     @property
     def info(self) -> WorldModelInfo:
@@ -183,6 +199,38 @@ class CompositeWorldModel(nn.Module):
             )
         self._rig = rig
         self._builder = None
+        self._scene = None
+
+    def begin_rollout(
+        self, current: dict[str, NDArray[np.uint8]], state: NDArray[np.floating], instruction: str
+    ) -> None:
+        """Start an imagined rollout: estimate its objects from the start frames, to be carried chunk by chunk.
+
+        The imagined branch calls this at its reset. Requests that continue the rollout (the state this
+        model predicted last, the same instruction) use the carried objects; any other request gets
+        objects estimated from its own frames.
+        """
+        self._scene = None
+        self._scene_key = None
+        if not self.config.objects:
+            return
+        self._scene = estimate_scene(self.builder.rig, instruction, dict(current), state)
+        if self._scene is not None:
+            self._scene_key = (instruction, np.asarray(state, np.float32).copy())
+
+    def _scene_for(self, request: PredictRequest) -> ObjectScene | None:
+        assert request.state is not None
+        key = self._scene_key
+        if (
+            self._scene is not None
+            and key is not None
+            and key[0] == request.instruction
+            and np.allclose(key[1], np.asarray(request.state, np.float32), atol=1e-5)
+        ):
+            return self._scene
+        if not self.config.objects:
+            return None
+        return estimate_scene(self.builder.rig, request.instruction, dict(request.current), request.state)
 
     @property
     def builder(self) -> LayerBuilder:
@@ -201,6 +249,11 @@ class CompositeWorldModel(nn.Module):
         if request.state is None:
             raise ValueError("state: world model v2 needs the current joint state (PredictRequest.build(..., state=))")
         head = self.config.views[0]
+        scene = self._scene_for(request)
+        resting = None
+        if scene is not None:
+            held = (scene.held(0), scene.held(1))
+            resting = (None if held[0] is None else held[0].grip, None if held[1] is None else held[1].grip)
         layers = self.builder(
             dict(request.current),
             request.state,
@@ -208,6 +261,8 @@ class CompositeWorldModel(nn.Module):
             {head: request.history[head]},
             request.history_state,
             request.history_valid,
+            resting=resting,
+            carry=scene is None,
         )
         base_np, scal_np = chunk_channels(layers, dict(request.current), self.config.views)
         base, scal = torch.from_numpy(base_np), torch.from_numpy(scal_np)
@@ -226,7 +281,51 @@ class CompositeWorldModel(nn.Module):
         for side, grip_index in zip((0, 1), GRIPS, strict=True):
             view_index = 1 + side if len(self.config.views) > 2 else 0
             states[:, grip_index] = g[view_index, :, side]
+        if scene is not None:
+            by_view, grips_measured = self._objects(scene, request, layers, by_view)
+            states[:, list(GRIPS)] = grips_measured
+            if scene is self._scene:
+                self._scene_key = (request.instruction, states[-1].copy())
         return by_view, states
+
+    def _objects(
+        self,
+        scene: ObjectScene,
+        request: PredictRequest,
+        layers: ChunkLayers,
+        by_view: dict[str, NDArray[np.uint8]],
+    ) -> tuple[dict[str, NDArray[np.uint8]], NDArray[np.float32]]:
+        """Advance the tracked objects along the chunk and draw the moving ones into every view."""
+        assert request.state is not None
+        seq = np.concatenate([np.asarray(request.state, np.float64)[None], layers.poses])
+        poses, grips, moved = scene.advance(seq, np.asarray(request.actions, np.float64))
+        rig = self.builder.rig
+        spec = spec_for(request.instruction)
+        assert spec is not None
+        plate = (self.plate.permute(1, 2, 0).numpy() * 255.0).round().astype(np.uint8)
+        out: dict[str, NDArray[np.uint8]] = {}
+        for view, frames in by_view.items():
+            # The head view keeps the real pixels of objects at rest; a moving wrist camera's reprojection loses
+            # them as it turns away, so wrist views show every tracked object where it is.
+            index = [i for i, o in enumerate(scene.objects) if view != HEAD_VIEW or o.name in moved]
+            if not index:
+                out[view] = frames
+                continue
+            background = plate if view == HEAD_VIEW else _table_colour(np.asarray(request.current[view]), plate)
+            new = frames.copy()
+            for k in range(frames.shape[0]):
+                cam = frame_cameras(rig, layers.poses[k], [view]).get(view)
+                if cam is None:
+                    continue
+                drawn = [(scene.objects[i].shape, poses[k][i], scene.objects[i].colour) for i in index]
+                depth = np.asarray(layers.depth[view][k], np.float32)
+                img, masks = draw_objects(new[k], cam, drawn, depth)
+                robot = np.asarray(layers.parts[view][k]) > 0
+                for j, i in enumerate(index):
+                    img = erase_elsewhere(img, spec.object(scene.objects[i].name).colour, masks[j], robot, background)
+                new[k] = img
+            out[view] = new
+        return out, grips.astype(np.float32)
 
     def predict(
         self, request: PredictRequest, *, steps: int | None = None, seed: int = 0

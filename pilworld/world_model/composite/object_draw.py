@@ -1,0 +1,130 @@
+"""Drawing tracked objects into predicted frames, and erasing where they no longer are.
+
+An object that moves (held, or let go, in the chunk) is drawn at its pose in every view: a box as its
+visible faces, a bowl as its silhouette with its darker opening, each face lit by a fixed light from
+above (the simulator's look closely enough for colour-based perception: only the hue classifies an
+object, :mod:`pilworld.perception.colour`). The robot render's depth occludes it where the robot is
+nearer. Its colour anywhere else in that view (where it was, a ghost the blend left) is replaced by
+the empty scene: the head camera's plate, or a wrist view's table colour.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.camera_model import CameraModel
+from pilworld.judges.vision_fit import BoxShape, Pose2D, Shape, silhouette_uv
+from pilworld.perception.colour import ColourClass, segment
+
+LIGHT = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
+AMBIENT = 0.62
+_SHIFT = 4
+U8 = NDArray[np.uint8]
+F64 = NDArray[np.float64]
+
+
+def _shade(normal: F64) -> float:
+    return AMBIENT + (1.0 - AMBIENT) * max(0.0, float(normal @ LIGHT))
+
+
+def _box_faces(edge: float, pose: Pose2D) -> list[tuple[F64, F64]]:
+    """The six faces of a box as (4 rig-frame corners, outward normal)."""
+    h = edge / 2
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    centre = np.array([pose.x, pose.y, pose.z + h])
+    faces = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3)
+            n[axis] = sign
+            a, b = [i for i in range(3) if i != axis]
+            quad = []
+            for u, v in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                p = np.zeros(3)
+                p[axis], p[a], p[b] = sign * h, u * h, v * h
+                quad.append(p)
+            faces.append((np.asarray(quad) @ R.T + centre, R @ n))
+    return faces
+
+
+def _ring(radius: float, z: float, pose: Pose2D, n: int = 24) -> F64:
+    phi = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
+    return np.column_stack([pose.x + radius * np.cos(phi), pose.y + radius * np.sin(phi), np.full(n, z)])
+
+
+def _polygons(camera: CameraModel, shape: Shape, pose: Pose2D, colour: F64) -> list[tuple[float, F64, F64]]:
+    """(camera depth, pixel polygon, RGB) of each visible part of one object."""
+    out: list[tuple[float, F64, F64]] = []
+    if isinstance(shape, BoxShape):
+        T = camera.T_cam_base
+        eye = -T[:3, :3].T @ T[:3, 3]  # the camera centre in the rig frame
+        for quad, normal in _box_faces(shape.edge, pose):
+            if float(normal @ (eye - quad.mean(axis=0))) <= 0:
+                continue
+            depth = camera.points_to_camera(quad)[:, 2]
+            if not np.all(depth > 1e-3):
+                continue
+            uv, _ = camera.project(quad)
+            out.append((float(depth.mean()), uv, colour * _shade(normal)))
+        return out
+    hull = silhouette_uv(camera, shape, pose)
+    if hull is None:
+        return out
+    centre = np.array([[pose.x, pose.y, pose.z + shape.height / 2]])
+    d = float(camera.points_to_camera(centre)[0, 2])
+    out.append((d, hull, colour * 0.85))
+    rim = _ring(shape.top_radius - shape.wall / 2, pose.z + shape.height, pose)
+    if np.all(camera.points_to_camera(rim)[:, 2] > 1e-3):
+        uv, _ = camera.project(rim)
+        out.append((d - 1e-4, cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(np.float64), colour * 0.62))
+    return out
+
+
+def draw_objects(
+    image: U8,
+    camera: CameraModel,
+    objects: Sequence[tuple[Shape, Pose2D, F64]],
+    robot_depth: NDArray[np.float32],
+) -> tuple[U8, dict[int, NDArray[np.bool_]]]:
+    """``image`` with ``objects`` (shape, pose, RGB) drawn, nearer than the robot; and each one's drawn pixels."""
+    h, w = image.shape[:2]
+    out = image.copy()
+    zbuf = np.where(robot_depth > 0, robot_depth, np.inf).astype(np.float64)
+    parts = []
+    for index, (shape, pose, colour) in enumerate(objects):
+        for depth, uv, rgb in _polygons(camera, shape, pose, colour):
+            parts.append((depth, index, uv, rgb))
+    masks = {i: np.zeros((h, w), bool) for i in range(len(objects))}
+    canvas = np.zeros((h, w), np.uint8)
+    for depth, index, uv, rgb in sorted(parts, key=lambda p: -p[0]):  # far to near
+        if not np.all(np.isfinite(uv)) or np.abs(uv).max() > 8 * max(h, w):
+            continue
+        canvas[:] = 0
+        cv2.fillConvexPoly(canvas, np.round(uv * (1 << _SHIFT)).astype(np.int32), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        px = (canvas > 0) & (depth < zbuf)
+        out[px] = np.clip(rgb, 0, 255).astype(np.uint8)
+        zbuf[px] = depth
+        for m in masks.values():
+            m[px] = False
+        masks[index] |= px
+    return out, masks
+
+
+def erase_elsewhere(
+    image: U8, colour: ColourClass, keep: NDArray[np.bool_], robot: NDArray[np.bool_], background: U8
+) -> U8:
+    """``image`` with ``colour``'s pixels outside ``keep`` (and off the robot) replaced by ``background``."""
+    mask = segment(image, [colour])[colour.name] & ~keep & ~robot
+    if not mask.any():
+        return image
+    grown = cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    grown &= ~keep & ~robot
+    out = image.copy()
+    out[grown] = background[grown]
+    return out
