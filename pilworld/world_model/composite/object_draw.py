@@ -78,11 +78,11 @@ def _polygons(camera: CameraModel, shape: Shape, pose: Pose2D, colour: F64) -> l
         return out
     centre = np.array([[pose.x, pose.y, pose.z + shape.height / 2]])
     d = float(camera.points_to_camera(centre)[0, 2])
-    out.append((d, hull, colour * 0.85))
+    out.append((d, hull, colour * 0.95))
     rim = _ring(shape.top_radius - shape.wall / 2, pose.z + shape.height, pose)
     if np.all(camera.points_to_camera(rim)[:, 2] > 1e-3):
         uv, _ = camera.project(rim)
-        out.append((d - 1e-4, cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(np.float64), colour * 0.62))
+        out.append((d - 1e-4, cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(np.float64), colour * 0.72))
     return out
 
 

@@ -58,6 +58,7 @@ class TrackedObject:
     held_by: int | None = None  # side index while a gripper holds it
     grip: float = 0.0  # the opening the holding gripper measures
     in_tcp: F64 | None = None  # (4, 4) its upright frame in the holding tool's frame
+    moved: bool = False  # it has been held in this rollout (its pixels are ours to draw since)
 
     @property
     def height(self) -> float:
@@ -116,12 +117,13 @@ class ObjectScene:
         then the servo-lagged commands), ``commanded`` (K, 14) the chunk's stride-aligned commands.
 
         Returns the objects' poses per frame (K lists, ``objects`` order), the (K, 2) gripper openings
-        the robot will measure, and the names of the objects that moved (held or let go in the chunk).
+        the robot will measure, and the names of the objects that have moved in this rollout (held now,
+        or at some time since its start).
         """
         K = seq.shape[0] - 1
         tcp = self.rig.kinematics.tcp_poses(seq)  # (K+1, 2, 4, 4)
         grips = np.zeros((K, 2))
-        moved = {o.name for o in self.objects if o.held_by is not None}
+        moved = {o.name for o in self.objects if o.held_by is not None or o.moved}
         frames: list[list[Pose2D]] = []
         for i in range(1, K + 1):
             for si, side in enumerate(SIDES):
@@ -162,27 +164,30 @@ class ObjectScene:
         return bool(c[1] >= c[0]) if i == 1 else bool(c[i - 1] >= c[i - 2])
 
     def _between_fingers(self, T_tcp: F64, opening: float, side: int) -> TrackedObject | None:
-        """The free object between the fingers of the tool at ``T_tcp``, open at ``opening``: it lies
-        between the pads, the fingertips below its top, and the fingers are open wider than it."""
+        """The free object between the fingers of the tool at ``T_tcp``, open at ``opening``.
+
+        The fingertips must be below its top, and the fingers open wider than what they pinch. A box
+        lies between the pads (across them within its half-width plus a pad's, along the closing
+        axis within the fingers' span); for a bowl, its wall must cross the fingers' span.
+        """
         inv = np.linalg.inv(T_tcp)
         tip_z = float(T_tcp[2, 3]) - FINGERTIP_BELOW_TCP
+        span = opening * self._max_opening(side) / 2  # each finger's distance from the tool point
         best, best_d = None, math.inf
         for o in self.objects:
-            if o.held_by is not None:
+            if o.held_by is not None or not (o.pose.z - 0.01 < tip_z < o.pose.z + o.height - 0.004):
                 continue
-            if not (o.pose.z - 0.01 < tip_z < o.pose.z + o.height - 0.004):
+            if opening < measured_grip(o, self._max_opening(side)) - 0.02:
                 continue
             centre = inv @ np.array([o.pose.x, o.pose.y, o.pose.z + o.height / 2, 1.0])
-            across, along = abs(float(centre[0])), abs(float(centre[1]))  # pads' width axis, closing axis
+            across, along = float(centre[0]), float(centre[1])  # the pads' width axis, the closing axis
             if isinstance(o.shape, BoxShape):
-                ok = across < o.shape.edge / 2 + FINGER_HALF_WIDTH * 0.5 and along < 0.085 / 2
+                ok = abs(across) < o.shape.edge / 2 + FINGER_HALF_WIDTH * 0.5 and abs(along) < span
                 d = float(np.hypot(across, along))
-            else:  # the fingers must straddle the bowl's wall
-                r = float(np.hypot(o.pose.x - T_tcp[0, 3], o.pose.y - T_tcp[1, 3]))
-                d = abs(r - o.shape.top_radius)
-                ok = d < 0.012
-            width = measured_grip(o, self._max_opening(side))
-            if ok and opening >= width - 0.02 and d < best_d:
+            else:
+                hit = _wall_on_axis(across, along, o.shape.top_radius, span)
+                ok, d = hit is not None, math.inf if hit is None else abs(hit)
+            if ok and d < best_d:
                 best, best_d = o, d
         return best
 
@@ -201,8 +206,18 @@ class ObjectScene:
             pose = Pose2D(float(world[0, 3]), float(world[1, 3]), obj.pose.z, yaw_tcp + quarter)
             obj.pose = pose
             T_obj = obj.matrix()
+        else:
+            # The fingers close on the wall where it crosses their span: the bowl slides until that point
+            # of its rim is between the pads.
+            local = np.linalg.inv(T_tcp) @ T_obj
+            hit = _wall_on_axis(float(local[0, 3]), float(local[1, 3]), obj.shape.top_radius, 1.0)
+            if hit is not None:
+                shift = T_tcp[:3, 1] * hit  # the tool point moves to the rim point, i.e. the bowl by −hit
+                obj.pose = Pose2D(obj.pose.x - float(shift[0]), obj.pose.y - float(shift[1]), obj.pose.z, obj.pose.yaw)
+                T_obj = obj.matrix()
         obj.in_tcp = np.linalg.inv(T_tcp) @ T_obj
         obj.held_by = side
+        obj.moved = True
         obj.grip = measured_grip(obj, self._max_opening(side))
 
     def _drop(self, obj: TrackedObject) -> None:
@@ -262,8 +277,7 @@ def estimate_scene(
     pending = []
     for obj in spec.objects:
         blob = largest_blob(labels[HEAD_VIEW].masks[obj.name])
-        pixels = np.asarray(images[HEAD_VIEW])[labels[HEAD_VIEW].masks[obj.name]]
-        colour = np.median(pixels.reshape(-1, 3), axis=0) if pixels.size else np.asarray(obj.colour.rgb) * 200.0
+        colour = _lit_colour(np.asarray(images[HEAD_VIEW])[labels[HEAD_VIEW].masks[obj.name]], obj.colour.rgb)
         if obj.name in held:
             si = held[obj.name]
             T = tcp[si] @ _held_offset(obj.shape)
@@ -299,6 +313,25 @@ def estimate_scene(
         placed.append(tracked)
         scene.objects.append(tracked)
     return scene
+
+
+def _wall_on_axis(across: float, along: float, radius: float, span: float) -> float | None:
+    """Where a rim of ``radius`` centred at (``across``, ``along``) in the tool frame crosses the closing
+    axis (the tool's y) within ``span`` of the tool point: the crossing nearest the tool point, or None."""
+    if abs(across) >= radius:
+        return None
+    h = math.sqrt(radius * radius - across * across)
+    hits = [y for y in (along - h, along + h) if abs(y) <= span]
+    return min(hits, key=abs) if hits else None
+
+
+def _lit_colour(pixels: NDArray[np.uint8], albedo: tuple[float, float, float]) -> F64:
+    """An object's lit colour: the median of its brighter half of pixels (its top and lit faces)."""
+    if pixels.shape[0] < 2:
+        return np.asarray(albedo, np.float64) * 220.0
+    value = pixels.max(axis=1)
+    bright = pixels[value >= np.median(value)]
+    return np.asarray(np.median(bright.reshape(-1, 3), axis=0), np.float64)
 
 
 def _held_offset(shape: Shape) -> F64:
