@@ -43,6 +43,8 @@ from pilworld.types import ARM_LAYOUT, HEAD_VIEW
 HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest on an object
 FINGER_HALF_WIDTH = 0.011  # the pads' half-width across the closing axis [m] (the simulated gripper's)
 FINGERTIP_BELOW_TCP = 0.018  # the fingertips reach this far below the tool point [m]
+PINCH_DEPTH = 0.004  # the fingertips must reach this far below an object's top to hold it (a bowl: its lip band) [m]
+NEST_SETTLE = 0.3  # share of its offset a bowl keeps when it slides down into the bowl below
 SIDES = tuple(ARM_LAYOUT)
 F64 = NDArray[np.float64]
 
@@ -86,7 +88,7 @@ def support_top(obj: TrackedObject, below: TrackedObject) -> float | None:
         if d > b.edge / 2:  # its centre of mass beyond the top face's edge: it tips off
             return None
         return below.pose.z + b.edge
-    if isinstance(o, BowlShape) and d < b.top_radius - o.bottom_radius * 0.5:
+    if top_is_nested(obj, below):
         # Nested: the base rim meets the flaring inner wall (as the simulator's bowls are built).
         slope = (b.top_radius - b.bottom_radius) / max(b.height - b.lip, 1e-6)
         rise = max(0.0, (o.bottom_radius - (b.bottom_radius - b.wall)) / slope)
@@ -94,6 +96,15 @@ def support_top(obj: TrackedObject, below: TrackedObject) -> float | None:
     if d < b.top_radius:
         return below.pose.z + b.height  # anything else lands across the rim
     return None
+
+
+def top_is_nested(obj: TrackedObject, below: TrackedObject) -> bool:
+    """Whether bowl ``obj`` over bowl ``below`` sits inside it (its base within the opening), not across the rim."""
+    b, o = below.shape, obj.shape
+    if not (isinstance(b, BowlShape) and isinstance(o, BowlShape)):
+        return False
+    d = float(np.hypot(obj.pose.x - below.pose.x, obj.pose.y - below.pose.y))
+    return d < b.top_radius - o.bottom_radius * 0.5
 
 
 def measured_grip(obj: TrackedObject, max_opening: float) -> float:
@@ -175,7 +186,7 @@ class ObjectScene:
         span = opening * self._max_opening(side) / 2  # each finger's distance from the tool point
         best, best_d = None, math.inf
         for o in self.objects:
-            if o.held_by is not None or not (o.pose.z - 0.01 < tip_z < o.pose.z + o.height - 0.004):
+            if o.held_by is not None or not (o.pose.z - 0.01 < tip_z < o.pose.z + o.height - PINCH_DEPTH):
                 continue
             if opening < measured_grip(o, self._max_opening(side)) - 0.02:
                 continue
@@ -221,14 +232,18 @@ class ObjectScene:
         obj.grip = measured_grip(obj, self._max_opening(side))
 
     def _drop(self, obj: TrackedObject) -> None:
-        z = 0.0
+        z, on = 0.0, None
         for other in self.objects:
             if other is obj or other.held_by is not None:
                 continue
             top = support_top(obj, other)
-            if top is not None and top <= obj.pose.z + 0.02:
-                z = max(z, top)
-        obj.pose = Pose2D(obj.pose.x, obj.pose.y, z, obj.pose.yaw)
+            if top is not None and top <= obj.pose.z + 0.02 and top > z:
+                z, on = top, other
+        x, y = obj.pose.x, obj.pose.y
+        if on is not None and top_is_nested(obj, on):  # its base slides down the flaring wall to the middle
+            x = on.pose.x + (x - on.pose.x) * NEST_SETTLE
+            y = on.pose.y + (y - on.pose.y) * NEST_SETTLE
+        obj.pose = Pose2D(x, y, z, obj.pose.yaw)
 
 
 # ---------------------------------------------------------------------------------------------------- estimation
