@@ -111,7 +111,7 @@ class LayerBuilder:
         history_states: NDArray[np.floating] | None = None,
         history_valid: NDArray[np.bool_] | None = None,
         resting: tuple[float | None, float | None] | None = None,
-        carry: bool = True,
+        with_carry: bool = True,
     ) -> ChunkLayers:
         """Layers of one chunk; ``history_*`` (H_h frames oldest first, their states and validity) feed ``memory``.
 
@@ -156,7 +156,7 @@ class LayerBuilder:
                 img = np.zeros((K, h, w, 3), dtype=np.uint8)
                 ok = np.zeros((K, h, w), dtype=bool)
                 carry[side][view.name], carry_valid[side][view.name] = img, ok
-            if g is None or not carry:
+            if g is None or not with_carry:
                 continue
             grasp_view: dict[str, tuple[U8, NDArray[np.bool_]]] = {}
             for i in range(max(g, 1), K + 1):

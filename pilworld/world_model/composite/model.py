@@ -24,13 +24,12 @@ from torch import nn
 from torch.nn import functional as F
 
 from pilworld.config.rig import RigConfig
-from pilworld.judges.vision_views import frame_cameras
 from pilworld.types import DEFAULT_VIEWS, HEAD_VIEW, ChunkSpec
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo
-from pilworld.world_model.composite.cache import GRIPS, LAYERS_VERSION, chunk_channels
+from pilworld.world_model.composite.cache import GRIPS, LAYERS_VERSION, chunk_channels, downsampled
 from pilworld.world_model.composite.layers import ChunkLayers, LayerBuilder
 from pilworld.world_model.composite.net import N_VIEWS, CompositeUNet, RobotPainter
-from pilworld.world_model.composite.object_draw import draw_objects, erase_elsewhere
+from pilworld.world_model.composite.object_draw import draw_objects, erase_elsewhere, view_cameras
 from pilworld.world_model.composite.objects import ObjectScene, estimate_scene, spec_for
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
@@ -107,32 +106,34 @@ def net_inputs(base: torch.Tensor, scal: torch.Tensor) -> tuple[torch.Tensor, to
     return torch.cat([x, planes], 1), grips
 
 
+def _plate_at(plate: torch.Tensor, w: int) -> torch.Tensor:
+    return plate if plate.shape[-1] == w else F.adaptive_avg_pool2d(plate[None], (w, w))[0]
+
+
+def _image(x: torch.Tensor, first: int) -> torch.Tensor:
+    """Channels ``first … first+2`` of the base as an RGB image in [0, 1] (uint8 bases are converted here,
+    channel group by channel group: the whole base in float is the slowest step of a chunk)."""
+    c = x[:, first : first + 3]
+    return c.float() / 255.0 if c.dtype == torch.uint8 else c
+
+
+def _flag(x: torch.Tensor, channel: int) -> torch.Tensor:
+    c = x[:, channel]
+    return c > 127 if c.dtype == torch.uint8 else c > 0.5
+
+
 def candidates(
     x: torch.Tensor, generated: torch.Tensor, plate: torch.Tensor, view: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Base channels in [0, 1] → (N, 5, 3, h, w) candidate images and (N, 5, h, w) validity (CANDIDATES order).
-
-    ``plate`` (3, H, W) in [0, 1] is valid in the head view (``view`` index 0) only.
-    """
+) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    """Base channels (uint8, or float in [0, 1]) → the candidate images (each (N, 3, h, w) in [0, 1]) and their
+    validity (each (N, h, w) bool), in CANDIDATES order. ``plate`` (3, H, W) in [0, 1] is valid in the head
+    view (``view`` index 0) only."""
     n, _, h, w = x.shape
-    one = torch.ones_like(x[:, 3])
-    if plate.shape[-1] != w:
-        plate = F.adaptive_avg_pool2d(plate[None], (h, w))[0]
-    head = (view == 0).float()[:, None, None].expand(n, h, w)
-    plates = plate[None].expand(n, -1, -1, -1)
-    cands = torch.stack([x[:, 0:3], x[:, 7:10], x[:, 11:14], generated, plates, x[:, 21:24]], 1)
-    valid = torch.stack(
-        [
-            (x[:, 3] > 0.5).float(),
-            (x[:, 10] > 0.5).float(),
-            (x[:, 14] > 0.5).float(),
-            one,
-            head,
-            (x[:, 24] > 0.5).float(),
-        ],
-        1,
-    )
-    return cands, valid
+    plates = _plate_at(plate, w)[None].expand(n, -1, -1, -1)
+    head = (view == 0)[:, None, None].expand(n, h, w)
+    images = [_image(x, 0), _image(x, 7), _image(x, 11), generated, plates, _image(x, 21)]
+    valid = [_flag(x, 3), _flag(x, 10), _flag(x, 14), torch.ones_like(head), head, _flag(x, 24)]
+    return images, valid
 
 
 def blend(
@@ -143,25 +144,30 @@ def blend(
     painter: RobotPainter,
     plate: torch.Tensor,
 ) -> torch.Tensor:
-    """The composite at the resolution of the base channels ``x`` (in [0, 1]); gates/generated are resized to it."""
+    """The composite at the resolution of the base channels ``x`` (uint8, or float in [0, 1]); gates and
+    generated are resized to it."""
     h, w = x.shape[-2:]
     if gates.shape[-1] != w:  # the gates choose between full-resolution layers
         gates = F.interpolate(gates, size=(h, w), mode="bilinear", align_corners=False)
         generated = F.interpolate(generated, size=(h, w), mode="bilinear", align_corners=False)
-    cands, valid = candidates(x, generated, plate, scal[:, 5])
-    logits = gates.masked_fill(valid < 0.5, -1e4)
-    weights = torch.softmax(logits, 1)
+    images, valid = candidates(x, generated, plate, scal[:, 5])
     # Away from the hands nothing moves: the prior where it has the pixel, else the memory; the gates decide
     # only near the tools' paths (and where neither layer has the pixel, e.g. where the robot was all round).
-    prior_ok, memory_ok = valid[:, 0], valid[:, 5]
-    kept = torch.zeros_like(weights)
-    kept[:, 0] = prior_ok
-    kept[:, 5] = (1 - prior_ok) * memory_ok
-    free = ((x[:, 25] > 0.5) | ((prior_ok + memory_ok) < 0.5)).float()[:, None]
-    weights = free * weights + (1 - free) * kept
-    scene = (weights[:, :, None] * cands).sum(1)
-    parts = x[:, _PARTS]
-    robot = painter(parts, x[:, _SHADE], x[:, _DEPTH], scal[:, 5])
+    prior_ok, memory_ok = valid[0], valid[5]
+    kept = torch.where(prior_ok[:, None], images[0], images[5])
+    free = _flag(x, 25) | ~(prior_ok | memory_ok)
+    weights = torch.softmax(gates.masked_fill(~torch.stack(valid, 1), -1e4), 1)
+    mixed = weights[:, 0:1] * images[0]
+    for c in range(1, len(images)):  # a running sum: no (N, C, 3, h, w) stack of the candidates
+        mixed = mixed + weights[:, c : c + 1] * images[c]
+    scene = torch.where(free[:, None], mixed, kept)
+    parts = x[:, _PARTS].float()
+    if x.dtype == torch.uint8:
+        parts = parts / 255.0
+    shade, depth = x[:, _SHADE].float(), x[:, _DEPTH].float()
+    if x.dtype == torch.uint8:
+        shade, depth = shade / 255.0, depth / 255.0
+    robot = painter(parts, shade, depth, scal[:, 5])
     mask = parts.sum(1, keepdim=True).clamp(0, 1)
     out: torch.Tensor = mask * robot + (1 - mask) * scene
     return out
@@ -262,16 +268,16 @@ class CompositeWorldModel(nn.Module):
             request.history_state,
             request.history_valid,
             resting=resting,
-            carry=scene is None,
+            with_carry=scene is None,
         )
         base_np, scal_np = chunk_channels(layers, dict(request.current), self.config.views)
         base, scal = torch.from_numpy(base_np), torch.from_numpy(scal_np)
-        x = base.float() / 255.0
         s = self.config.work_size
-        small = F.adaptive_avg_pool2d(x, s) * 255.0  # the network's input, as in training (area-averaged)
+        # The network's input, area-averaged one channel at a time in uint8 as the training cache is.
+        small = torch.from_numpy(np.stack([downsampled(row, s) for row in base_np]))
         inp, cmd = net_inputs(small, scal)
         gates, generated, grips = self.net(inp, cmd)
-        out = blend(x, scal, gates, generated, self.painter, self.plate)
+        out = blend(base, scal, gates, generated, self.painter, self.plate)
         frames = (out.clamp(0, 1) * 255.0).round().to(torch.uint8).permute(0, 2, 3, 1).numpy()
         K = self.config.future
         by_view = {v: frames[i * K : (i + 1) * K] for i, v in enumerate(self.config.views)}
@@ -311,19 +317,19 @@ class CompositeWorldModel(nn.Module):
             if not index:
                 out[view] = frames
                 continue
+            cams = view_cameras(rig, view, layers.poses)
+            if cams is None:
+                out[view] = frames
+                continue
             background = plate if view == HEAD_VIEW else _table_colour(np.asarray(request.current[view]), plate)
+            colours = [spec.object(scene.objects[i].name).colour for i in index]
             new = frames.copy()
-            for k in range(frames.shape[0]):
-                cam = frame_cameras(rig, layers.poses[k], [view]).get(view)
-                if cam is None:
-                    continue
+            for k, cam in enumerate(cams):
                 drawn = [(scene.objects[i].shape, poses[k][i], scene.objects[i].colour) for i in index]
                 depth = np.asarray(layers.depth[view][k], np.float32)
                 img, masks = draw_objects(new[k], cam, drawn, depth)
                 robot = np.asarray(layers.parts[view][k]) > 0
-                for j, i in enumerate(index):
-                    img = erase_elsewhere(img, spec.object(scene.objects[i].name).colour, masks[j], robot, background)
-                new[k] = img
+                new[k] = erase_elsewhere(img, colours, [masks[j] for j in range(len(index))], robot, background)
             out[view] = new
         return out, grips.astype(np.float32)
 

@@ -18,8 +18,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.camera_model import CameraModel
+from pilworld.config.rig import RigConfig
 from pilworld.judges.vision_fit import BoxShape, Pose2D, Shape, silhouette_uv
+from pilworld.judges.vision_views import wrist_camera
 from pilworld.perception.colour import ColourClass, segment
+from pilworld.types import HEAD_VIEW
 
 LIGHT = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
 AMBIENT = 0.62
@@ -117,14 +120,52 @@ def draw_objects(
 
 
 def erase_elsewhere(
-    image: U8, colour: ColourClass, keep: NDArray[np.bool_], robot: NDArray[np.bool_], background: U8
+    image: U8,
+    colours: Sequence[ColourClass],
+    keep: Sequence[NDArray[np.bool_]],
+    robot: NDArray[np.bool_],
+    background: U8,
 ) -> U8:
-    """``image`` with ``colour``'s pixels outside ``keep`` (and off the robot) replaced by ``background``."""
-    mask = segment(image, [colour])[colour.name] & ~keep & ~robot
+    """``image`` with each colour's pixels outside its ``keep`` mask (and off the robot) replaced by ``background``."""
+    if not colours:
+        return image
+    found = segment(image, list(colours))
+    mask = np.zeros(image.shape[:2], bool)
+    for colour, kept in zip(colours, keep, strict=True):
+        mask |= found[colour.name] & ~kept
+    mask &= ~robot
     if not mask.any():
         return image
     grown = cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    grown &= ~keep & ~robot
+    grown &= ~robot
+    for kept in keep:
+        grown &= ~kept
     out = image.copy()
     out[grown] = background[grown]
+    return out
+
+
+def view_cameras(rig: RigConfig, view: str, poses: NDArray[np.floating]) -> list[CameraModel] | None:
+    """The camera model of ``view`` at each of the (K, 14) ``poses`` (a wrist camera moves with its arm);
+    None for a view the rig does not have."""
+    if view == HEAD_VIEW:
+        return [rig.head_camera_model] * len(poses)
+    if view not in rig.wrist_cameras:
+        return None
+    first = wrist_camera(rig, view, poses[0])
+    cam = rig.wrist_cameras[view]
+    side = 0 if cam.arm == "left" else 1
+    T_rig_cam = rig.kinematics.tcp_poses(np.asarray(poses, np.float64))[:, side] @ cam.pose_in_tcp.matrix()
+    out = [first]
+    for T in T_rig_cam[1:]:
+        out.append(
+            CameraModel(
+                K=first.K,
+                dist=first.dist,
+                T_cam_base=np.linalg.inv(T),
+                width=first.width,
+                height=first.height,
+                name=view,
+            )
+        )
     return out

@@ -88,7 +88,7 @@ def support_top(obj: TrackedObject, below: TrackedObject) -> float | None:
         if d > b.edge / 2:  # its centre of mass beyond the top face's edge: it tips off
             return None
         return below.pose.z + b.edge
-    if top_is_nested(obj, below):
+    if isinstance(o, BowlShape) and top_is_nested(obj, below):
         # Nested: the base rim meets the flaring inner wall (as the simulator's bowls are built).
         slope = (b.top_radius - b.bottom_radius) / max(b.height - b.lip, 1e-6)
         rise = max(0.0, (o.bottom_radius - (b.bottom_radius - b.wall)) / slope)

@@ -205,7 +205,7 @@ def test_a_ghost_is_erased_but_the_object_and_the_robot_are_kept(rig: RigConfig)
     robot = np.zeros((32, 32), bool)
     robot[10:14, 10:14] = True
     background = np.full((32, 32, 3), 90, np.uint8)
-    out = erase_elsewhere(image, obj.colour, keep, robot, background)
+    out = erase_elsewhere(image, [obj.colour], [keep], robot, background)
     assert (out[2:6, 2:6] == 90).all()
     assert (out[20:24, 20:24] == rgb).all() and (out[10:14, 10:14] == rgb).all()
     assert HEAD_VIEW in rig.cameras
