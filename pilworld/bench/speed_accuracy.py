@@ -81,7 +81,7 @@ def _check_model(m: TrainedModel, path: Path) -> None:
 def _load(m: TrainedModel, rig_size: tuple[int, int]) -> Any:
     import torch
 
-    from pilworld.world_model import DEFAULT_CHECKPOINT
+    from pilworld.world_model import V1_CHECKPOINT
     from pilworld.world_model.checkpoint import load_world_model
     from pilworld.world_model.config import preset
     from pilworld.world_model.model import PilWorldModel
@@ -92,7 +92,7 @@ def _load(m: TrainedModel, rig_size: tuple[int, int]) -> Any:
             torch.manual_seed(0)
             model: Any = PilWorldModel(preset(m.preset, height=m.size, width=m.size)).eval()
     else:
-        path = Path(m.path) if m.path else Path(DEFAULT_CHECKPOINT)
+        path = Path(m.path) if m.path else Path(V1_CHECKPOINT)  # the sweep's presets and steps are v1's
         _check_model(m, path)
         model = load_world_model(path)
     if (model.info.width, model.info.height) != rig_size:

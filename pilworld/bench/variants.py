@@ -24,6 +24,7 @@ from typing import Any
 
 from pilworld.collection.workers import process_map, worker_count
 from pilworld.types import ChunkSpec
+from pilworld.world_model import V1_CHECKPOINT
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 BENCH_WEIGHTS = REPO_ROOT / "weights" / "bench"
@@ -67,19 +68,25 @@ def standard_variants() -> list[ModelVariant]:
     """The paper-style table's rows: ours, the Ctrl-World-style baseline, and the ablations.
 
     The Ctrl-World-style baseline had 3,500 Ψ_θ steps; ``pilworld_3500`` is our recipe at the same budget
-    (the shipped model's first stage), so the two compare at equal training. The ablations change one
-    thing of the shipped model: its history memory hidden at inference, or its stage-2 task adapters
-    fine-tuned on successes only (the paper's stage 2 uses successes and failures).
+    (v1's first stage), so the two compare at equal training. The ablations change one thing of v1 (the
+    paper-style latent model, shipped until issue #21): its history memory hidden at inference, or its
+    stage-2 task adapters fine-tuned on successes only (the paper's stage 2 uses successes and failures).
+    The shipped model is v2 (``pilworld``); its equal-budget ablations are issue #24's.
     """
     return [
-        ModelVariant("pilworld", "PiL-World v1 (shipped, 9k steps, task adapters)", role="shipped"),
         ModelVariant(
-            "pilworld_v2",
-            "PiL-World v2 (Γ⁺ composite, predicted state; issue #21, in progress)",
-            bench_model("composite_v2"),
+            "pilworld",
+            "PiL-World v2 (shipped: Γ⁺ composite, tracked objects, predicted state)",
             adapter="none",
-            role="model",
-            note="docs/world_model.md, 'World model v2': not yet the default (it does not yet predict outcomes)",
+            role="shipped",
+            note="docs/world_model.md, 'World model v2'",
+        ),
+        ModelVariant(
+            "pilworld_v1",
+            "PiL-World v1 (latent model, 9k steps, task adapters)",
+            str(V1_CHECKPOINT),
+            role="reference",
+            note="the shipped model until issue #21 (its rows in results before 2026-12-02 are named 'pilworld')",
         ),
         ModelVariant(
             "ctrl_world",
@@ -97,17 +104,18 @@ def standard_variants() -> list[ModelVariant]:
         ),
         ModelVariant(
             "no_history",
-            "− history (shipped, memory hidden)",
+            "− history (v1, memory hidden)",
+            str(V1_CHECKPOINT),
             history=False,
             role="ablation",
-            note="inference-time: the shipped weights with the latent history memory masked",
+            note="inference-time: v1's weights with the latent history memory masked",
         ),
         ModelVariant(
             "success_only",
-            "− failure data (task adapters fine-tuned on successes only)",
+            "− failure data (v1's task adapters fine-tuned on successes only)",
             bench_model("success_only"),
             role="ablation",
-            note="the shipped stage-1 weights; stage 2 (150 LoRA steps per task) on successful clips only",
+            note="v1's stage-1 weights; stage 2 (150 LoRA steps per task) on successful clips only",
         ),
     ]
 

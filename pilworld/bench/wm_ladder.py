@@ -118,9 +118,9 @@ class LadderConfig:
 
     @property
     def model_path(self) -> Path:
-        from pilworld.world_model import DEFAULT_CHECKPOINT
+        from pilworld.world_model import V1_CHECKPOINT
 
-        return Path(self.model) if self.model else Path(DEFAULT_CHECKPOINT)
+        return Path(self.model) if self.model else Path(V1_CHECKPOINT)  # the ladder was first climbed with v1
 
     @property
     def subtasks_per_setting(self) -> int:

@@ -40,7 +40,7 @@ def register(sub: Any) -> None:
         "--world-model",
         type=Path,
         default=None,
-        help="Γ⁺: world-model folder timed in the same run (default: the shipped sim_small); 'none' skips it",
+        help="Γ⁺: world-model folder timed in the same run (default: v1, sim_small); 'none' skips it",
     )
     cv.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     cv.add_argument("--chunks", type=int, default=4000, help="random chunks per timed pass (default 4000)")
@@ -211,7 +211,7 @@ def register(sub: Any) -> None:
         "--checkpoint",
         type=Path,
         default=None,
-        help="world-model checkpoint (default: pilworld.world_model.DEFAULT_CHECKPOINT when defined)",
+        help="world-model checkpoint (default: v1, pilworld.world_model.V1_CHECKPOINT)",
     )
     wm.add_argument("--adapter", default=None, help="LoRA adapter of the checkpoint to apply (a task name)")
     wm.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
@@ -235,7 +235,7 @@ def register(sub: Any) -> None:
     cl.add_argument(
         "--models",
         default="",
-        help="NAME=FOLDER,... (default: v1 = shipped sim_small, v2 = weights/bench/composite_v2); ratios to the first",
+        help="NAME=FOLDER,... (default: v1 = sim_small, v2 = the shipped sim_composite); ratios to the first",
     )
     cl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     cl.add_argument("--task", default="sort_cubes", help="task of the start and of the adapter (default sort_cubes)")
@@ -249,7 +249,7 @@ def register(sub: Any) -> None:
     )
     wl.add_argument("--quick", action="store_true", help="3 tasks × 3 checkpoints × 1 subtask (≤ 5 min on 2 cores)")
     wl.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 1 quick / 2)")
-    wl.add_argument("--model", type=Path, default=None, help="world-model folder (default: the shipped sim_small)")
+    wl.add_argument("--model", type=Path, default=None, help="world-model folder (default: v1, sim_small)")
     wl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     wl.add_argument("--rungs", default="", help="comma-separated rungs (default: all four)")
     wl.add_argument("--tasks", default="all", help="comma-separated tasks (default all three)")
@@ -460,10 +460,9 @@ def _calibration(args: argparse.Namespace) -> int:
 
 def _chunk_latency(args: argparse.Namespace) -> int:
     from pilworld.bench.chunk_latency import parse_models, run_chunk_latency
-    from pilworld.bench.variants import bench_model
-    from pilworld.world_model import V1_CHECKPOINT
+    from pilworld.world_model import DEFAULT_CHECKPOINT, V1_CHECKPOINT
 
-    text = args.models or f"v1={V1_CHECKPOINT},v2={bench_model('composite_v2')}"
+    text = args.models or f"v1={V1_CHECKPOINT},v2={DEFAULT_CHECKPOINT}"
     result = run_chunk_latency(parse_models(text), rig=args.rig, task=args.task, repeats=args.repeats)
     for name, m in result["models"].items():
         print(f"{name:>12}: median {m['median_ms']:.1f} ms, p90 {m['p90_ms']:.1f} ms, ×{m['ratio_to_first']:.2f}")
@@ -495,9 +494,10 @@ def _world_model(args: argparse.Namespace) -> int:
     from pilworld.bench.world_model import HELDOUT_SEED0, heldout_dataset, run_world_model_bench
     from pilworld.world_model.checkpoint import load_world_model
 
-    checkpoint = args.checkpoint or getattr(world_model, "DEFAULT_CHECKPOINT", None)
+    # v1 by default: the bench's presets, steps and open-loop figures (docs/world_model.md) are v1's.
+    checkpoint = args.checkpoint or getattr(world_model, "V1_CHECKPOINT", None)
     if checkpoint is None:
-        raise ValueError("--checkpoint: required (pilworld.world_model defines no DEFAULT_CHECKPOINT)")
+        raise ValueError("--checkpoint: required (pilworld.world_model defines no V1_CHECKPOINT)")
     if not Path(checkpoint).exists():
         raise FileNotFoundError(f"--checkpoint: {checkpoint} not found")
     tasks = _names(args.tasks, list(TASK_NAMES), "--tasks")

@@ -1,13 +1,16 @@
 """The chunk-wise world model (paper §3.2): one interface (:mod:`.base`), the native PiL-World model
 (:mod:`.model`, presets in :mod:`.config`), training (:mod:`.training`) and the Wan2.1 backend (:mod:`.wan`).
 
-``DEFAULT_CHECKPOINT`` is the shipped ``small`` model trained on the simulated rig (see docs/world_model.md).
+``DEFAULT_CHECKPOINT`` is the shipped model, world model v2 (:mod:`.composite`: geometry, tracked objects and a
+0.09 M-parameter compositing network) trained on the simulated rig; ``V1_CHECKPOINT`` the paper-style latent
+model it replaced (see docs/world_model.md).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "sim_small"
-# v1, the paper-style latent model (marker Γ, 8× VAE, 1-step flow), named for comparisons (bench chunk-latency).
+DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "sim_composite"
+# v1, the paper-style latent model (marker Γ, 8× VAE, 1-step flow, task adapters): its presets, sampling steps
+# and ablations are what `bench speed-accuracy`, `bench world-model` and the ladder's autoencoder rung measure.
 V1_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "sim_small"

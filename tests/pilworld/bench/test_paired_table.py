@@ -25,6 +25,7 @@ from pilworld.bench.paired import (
     select_variants,
 )
 from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants
+from pilworld.world_model import V1_CHECKPOINT
 from pilworld.cli.bench import DEFAULT_RIG
 from pilworld.cli.main import main
 from pilworld.data.outcomes import Outcome, record_outcomes
@@ -49,7 +50,7 @@ def test_select_variants_by_mode_and_by_name() -> None:
     assert [v.name for v in select_variants(True)] == ["pilworld", "ctrl_world"]
     assert [v.name for v in select_variants(False)] == [v.name for v in standard_variants()]
     assert len(select_variants(False)) == 6  # with the v2 row (issue #21)
-    assert select_variants(False)[1].name == "pilworld_v2"
+    assert select_variants(False)[1].name == "pilworld_v1"
     # The shipped model is always there (first when not named), named variants keep their order.
     assert [v.name for v in select_variants(True, ["no_history"])] == ["pilworld", "no_history"]
     assert [v.name for v in select_variants(False, ["success_only", "no_history"])] == [
@@ -59,7 +60,8 @@ def test_select_variants_by_mode_and_by_name() -> None:
     ]
     assert [v.name for v in select_variants(True, ["ctrl_world", "pilworld"])] == ["ctrl_world", "pilworld"]
     no_history = select_variants(True, ["no_history"])[1]
-    assert no_history.history is False and no_history.world_model == "" and no_history.role == "ablation"
+    assert no_history.history is False and no_history.world_model == str(V1_CHECKPOINT)
+    assert no_history.role == "ablation"
     with pytest.raises(ValueError, match=r"unknown \['bogus'\]"):
         select_variants(True, ["no_history", "bogus"])
 
@@ -163,7 +165,7 @@ def test_each_variant_row(table: tuple[Path, dict[str, Any], str]) -> None:
     out, r, _ = table
     ours, ablation = r["variants"]["pilworld"], r["variants"]["no_history"]
     assert ours["role"] == "shipped" and ablation["role"] == "ablation"
-    assert ablation["world_model"] == "packaged" and ablation["out"] == str(out / "no_history")
+    assert ablation["world_model"] == str(V1_CHECKPOINT) and ablation["out"] == str(out / "no_history")
     assert ablation["settings"] == [
         {
             "task": "sort_cubes",
