@@ -1,7 +1,7 @@
 """``pilworld demo``: the whole method on the simulated rig, in one command (README "Quick start").
 
 1. **Paired runs** (:mod:`pilworld.paired`): every task × checkpoint × subtask twice from the same
-   start — on the simulated robot and in the shipped world model (with each task's LoRA adapter).
+   start — on the simulated robot and in the shipped world model (v2: :mod:`pilworld.world_model.composite`).
 2. **Judging** (:mod:`pilworld.judges`): the simulator's privileged checker judged the real branch while
    it ran; the image-only judge (success from frames, plus the automatic hallucination detector)
    judges both branches.

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from hw_drivers.sim.poses import HOME_Q14
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs import ImaginedEnv
+from pilworld.judges.vision_tasks import task_spec
 from pilworld.types import ARM_LAYOUT, ChunkSpec, Observation, Start, Subtask
 from pilworld.world_model.base import PredictRequest
 from pilworld.world_model.checkpoint import load_world_model
@@ -191,3 +193,20 @@ def test_away_from_the_hands_the_scene_is_kept_whatever_the_gates_say(model: Com
     free = layers.prior_valid[v] & (layers.parts[v] == 0) & layers.hands[v]
     if free.any():  # inside the hand region the gates rule: the (untrained) fill differs from the prior
         assert np.abs(frames[v].astype(int) - layers.prior[v].astype(int))[free].mean() > 1
+
+
+def test_objects_can_be_turned_off(rig32: RigConfig) -> None:
+    off = CompositeWorldModel(CompositeConfig(image_size=32, work_size=8, objects=False), rig32).eval()
+    req = _request(off)
+    assert req.state is not None
+    off.begin_rollout(dict(req.current), req.state, req.instruction)
+    assert off._scene is None and off._scene_for(req) is None
+    on = CompositeWorldModel(CompositeConfig(image_size=32, work_size=8), rig32).eval()
+    sort = task_spec("sort_cubes").instruction
+    req = dataclasses.replace(req, instruction=sort)
+    on.begin_rollout(dict(req.current), req.state, sort)
+    assert on._scene is not None and on._scene_for(req) is on._scene  # the same state continues the rollout
+    other = dataclasses.replace(_request(on, HOME_Q14.astype(np.float64) + 0.01), instruction=sort)
+    assert on._scene_for(other) is not on._scene
+    on.begin_rollout(dict(req.current), req.state, "fold the towel.")  # a task the knowledge does not list
+    assert on._scene is None
