@@ -27,6 +27,7 @@ takes the depth of the ray's closest approach to it.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -354,8 +355,15 @@ class AnalyticRobotRenderer:
 
     # ------------------------------------------------------------------ drawing
 
-    def render(self, q14: NDArray[np.floating], *, depth: bool = True, shaded: bool = True) -> RobotRender:
-        """Render joint vectors (N, 14) (or one (14,)) in every view; see :class:`RobotRender`."""
+    def render(
+        self,
+        q14: NDArray[np.floating],
+        *,
+        depth: bool = True,
+        shaded: bool = True,
+        views: Sequence[str] | None = None,
+    ) -> RobotRender:
+        """Render joint vectors (N, 14) (or one (14,)) in every view (or in ``views``); see :class:`RobotRender`."""
         q = np.asarray(q14, dtype=np.float64)
         if q.ndim not in (1, 2) or q.shape[-1] != STATE_DIM:
             raise ValueError(f"q14: expected joint vectors (N, {STATE_DIM}) or ({STATE_DIM},), got shape {q.shape}")
@@ -369,6 +377,8 @@ class AnalyticRobotRenderer:
         depths: dict[str, NDArray[np.float32]] = {}
         shades: dict[str, NDArray[np.uint8]] = {}
         for view in self.cameras.views:
+            if views is not None and view.name not in views:
+                continue
             T = poses[view.name]  # (N, 4, 4)
             R, t = T[:, :3, :3], T[:, :3, 3]
             Pc = np.einsum("nij,ngj->ngi", R, pos) + t[:, None]

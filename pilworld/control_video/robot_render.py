@@ -14,6 +14,7 @@ simulated rig is built from (:mod:`pilworld.control_video.robot_model`). Two bac
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, Protocol
 
@@ -59,7 +60,14 @@ class RobotRendererBackend(Protocol):
     cameras: RigCameras
     robot: RobotModel
 
-    def render(self, q14: NDArray[np.floating], *, depth: bool = True, shaded: bool = True) -> RobotRender: ...
+    def render(
+        self,
+        q14: NDArray[np.floating],
+        *,
+        depth: bool = True,
+        shaded: bool = True,
+        views: Sequence[str] | None = None,
+    ) -> RobotRender: ...
 
 
 def make_robot_renderer(

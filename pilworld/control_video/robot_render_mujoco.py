@@ -17,6 +17,7 @@ Geoms in :data:`~pilworld.control_video.robot_model.HIDDEN_GROUP` (table, floor,
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -112,8 +113,15 @@ class MujocoRobotRenderer:
             scene.lights[0].pos[:] = pos
             scene.lights[0].dir[:] = forward
 
-    def render(self, q14: NDArray[np.floating], *, depth: bool = True, shaded: bool = True) -> RobotRender:
-        """Part ids, depth and shaded images of joint vectors (N, 14) (or one (14,)) in every view."""
+    def render(
+        self,
+        q14: NDArray[np.floating],
+        *,
+        depth: bool = True,
+        shaded: bool = True,
+        views: Sequence[str] | None = None,
+    ) -> RobotRender:
+        """Part ids, depth and shaded images of joint vectors (N, 14) (or one (14,)) in every view (or in ``views``)."""
         q = as_finite_array(q14, "q14", (STATE_DIM,)).reshape(-1, STATE_DIM)
         qpos = self.robot.qpos(q)
         poses = self.cameras.poses(q)  # view → (N, 4, 4)
@@ -122,7 +130,8 @@ class MujocoRobotRenderer:
         parts: dict[str, NDArray[np.uint8]] = {}
         depths: dict[str, NDArray[np.float32]] = {}
         images: dict[str, NDArray[np.uint8]] = {}
-        for v in self.cameras.views:
+        chosen = [v for v in self.cameras.views if views is None or v.name in views]
+        for v in chosen:
             h, w = v.model.height, v.model.width
             parts[v.name] = np.zeros((n, h, w), dtype=np.uint8)
             if depth:
@@ -132,7 +141,7 @@ class MujocoRobotRenderer:
         for i in range(n):
             d.qpos[:] = qpos[i]
             mujoco.mj_kinematics(m, d)
-            for v in self.cameras.views:
+            for v in chosen:
                 r = self._renderers[(v.model.width, v.model.height)]
                 r.update_scene(d, camera=self._free, scene_option=self._option)
                 self._place_camera(r, v, poses[v.name][i])

@@ -272,7 +272,7 @@ class LayerBuilder:
             if not frames
             else list(
                 self.gamma.renderer.render(
-                    np.stack([np.asarray(st, np.float64) for _, st in frames]), depth=False, shaded=False
+                    np.stack([np.asarray(st, np.float64) for _, st in frames]), depth=False, shaded=False, views=[head]
                 ).parts[head]
             )
         )

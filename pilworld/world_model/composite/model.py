@@ -161,14 +161,15 @@ def blend(
     for c in range(1, len(images)):  # a running sum: no (N, C, 3, h, w) stack of the candidates
         mixed = mixed + weights[:, c : c + 1] * images[c]
     scene = torch.where(free[:, None], mixed, kept)
-    parts = x[:, _PARTS].float()
-    if x.dtype == torch.uint8:
-        parts = parts / 255.0
-    shade, depth = x[:, _SHADE].float(), x[:, _DEPTH].float()
-    if x.dtype == torch.uint8:
-        shade, depth = shade / 255.0, depth / 255.0
-    robot = painter(parts, shade, depth, scal[:, 5])
-    mask = parts.sum(1, keepdim=True).clamp(0, 1)
+    if x.dtype == torch.uint8:  # inference: an exact render, one part per pixel — the painter's table
+        onehot = x[:, _PARTS] > 127
+        ids = (onehot * torch.arange(1, onehot.shape[1] + 1, dtype=torch.uint8)[None, :, None, None]).amax(1)
+        robot = painter.paint_bytes(ids, x[:, _SHADE.start], x[:, _DEPTH.start], scal[:, 5])
+        mask = (ids > 0)[:, None].float()
+    else:
+        parts = x[:, _PARTS]
+        robot = painter(parts, x[:, _SHADE], x[:, _DEPTH], scal[:, 5])
+        mask = parts.sum(1, keepdim=True).clamp(0, 1)
     out: torch.Tensor = mask * robot + (1 - mask) * scene
     return out
 

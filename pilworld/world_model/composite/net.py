@@ -80,7 +80,9 @@ class CompositeUNet(nn.Module):
 class RobotPainter(nn.Module):
     """The robot's colour at a pixel from its render there: part one-hot, shade, depth, view (a per-pixel MLP).
 
-    Applied only where the render has robot, so it costs in proportion to the robot's pixels.
+    Applied only where the render has robot, so it costs in proportion to the robot's pixels. At inference
+    the render is exact (one part per pixel, shade and depth quantised to bytes), so :meth:`paint_bytes`
+    looks the colour up in a table of every (view, part, shade, depth), the MLP evaluated once per weights.
     """
 
     def __init__(self, hidden: int = 32) -> None:
@@ -92,6 +94,40 @@ class RobotPainter(nn.Module):
             nn.SiLU(),
             nn.Linear(hidden, 3),
         )
+        self._table: torch.Tensor | None = None
+        self._table_key: tuple[int, ...] = ()
+
+    @torch.no_grad()
+    def table(self) -> torch.Tensor:
+        """(views · parts · 256 · 256, 3) colours for every byte-quantised input, rebuilt when the weights change."""
+        key = tuple(p.data_ptr() for p in self.parameters()) + tuple(p._version for p in self.parameters())
+        if self._table is None or key != self._table_key:
+            level = torch.arange(256, dtype=torch.float32) / 255.0
+            v, p, s, d = torch.meshgrid(
+                torch.arange(N_VIEWS), torch.arange(N_PARTS - 1), torch.arange(256), torch.arange(256), indexing="ij"
+            )
+            x = torch.cat(
+                [
+                    F.one_hot(p.reshape(-1), N_PARTS - 1).float(),
+                    level[s.reshape(-1)][:, None],
+                    level[d.reshape(-1)][:, None],
+                    F.one_hot(v.reshape(-1), N_VIEWS).float(),
+                ],
+                1,
+            )
+            self._table = torch.sigmoid(self.net(x))
+            self._table_key = key
+        return self._table
+
+    def paint_bytes(
+        self, part_ids: torch.Tensor, shade: torch.Tensor, depth: torch.Tensor, view: torch.Tensor
+    ) -> torch.Tensor:
+        """Part ids (N, h, w) in 0 … 4 and uint8 shade and depth (N, h, w), view (N,) → RGB (N, 3, h, w), 0 off it."""
+        on = part_ids > 0
+        index = (view.long()[:, None, None] * (N_PARTS - 1) + (part_ids.long() - 1).clamp(min=0)) * 256 + shade.long()
+        index = index * 256 + depth.long()
+        out = self.table()[index] * on[..., None]
+        return out.permute(0, 3, 1, 2)
 
     def forward(
         self, parts_onehot: torch.Tensor, shade: torch.Tensor, depth: torch.Tensor, view: torch.Tensor
