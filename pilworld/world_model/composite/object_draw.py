@@ -35,25 +35,25 @@ def _shade(normal: F64) -> float:
     return AMBIENT + (1.0 - AMBIENT) * max(0.0, float(normal @ LIGHT))
 
 
-def _box_faces(edge: float, pose: Pose2D) -> list[tuple[F64, F64]]:
-    """The six faces of a box as (4 rig-frame corners, outward normal)."""
+# A box's corners are the 8 sign combinations (x, y, z) ∈ {−1, 1}³ of its half-edge; each face lists four of
+# them in order round the face, with its outward normal (in the box's frame).
+_SIGNS = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+_FACES = (
+    ((0, 1, 3, 2), (-1.0, 0.0, 0.0)),
+    ((4, 6, 7, 5), (1.0, 0.0, 0.0)),
+    ((0, 4, 5, 1), (0.0, -1.0, 0.0)),
+    ((2, 3, 7, 6), (0.0, 1.0, 0.0)),
+    ((0, 2, 6, 4), (0.0, 0.0, -1.0)),
+    ((1, 5, 7, 3), (0.0, 0.0, 1.0)),
+)
+
+
+def _box_corners(edge: float, pose: Pose2D) -> tuple[F64, F64]:
+    """A box's 8 rig-frame corners and its rotation."""
     h = edge / 2
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    centre = np.array([pose.x, pose.y, pose.z + h])
-    faces = []
-    for axis in range(3):
-        for sign in (-1.0, 1.0):
-            n = np.zeros(3)
-            n[axis] = sign
-            a, b = [i for i in range(3) if i != axis]
-            quad = []
-            for u, v in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-                p = np.zeros(3)
-                p[axis], p[a], p[b] = sign * h, u * h, v * h
-                quad.append(p)
-            faces.append((np.asarray(quad) @ R.T + centre, R @ n))
-    return faces
+    return (_SIGNS * h) @ R.T + np.array([pose.x, pose.y, pose.z + h]), R
 
 
 def _ring(radius: float, z: float, pose: Pose2D, n: int = 24) -> F64:
@@ -65,16 +65,19 @@ def _polygons(camera: CameraModel, shape: Shape, pose: Pose2D, colour: F64) -> l
     """(camera depth, pixel polygon, RGB) of each visible part of one object."""
     out: list[tuple[float, F64, F64]] = []
     if isinstance(shape, BoxShape):
+        corners, R = _box_corners(shape.edge, pose)
+        depth = camera.points_to_camera(corners)[:, 2]
+        if not np.all(depth > 1e-3):
+            return out
+        uv, _ = camera.project(corners)
         T = camera.T_cam_base
         eye = -T[:3, :3].T @ T[:3, 3]  # the camera centre in the rig frame
-        for quad, normal in _box_faces(shape.edge, pose):
-            if float(normal @ (eye - quad.mean(axis=0))) <= 0:
-                continue
-            depth = camera.points_to_camera(quad)[:, 2]
-            if not np.all(depth > 1e-3):
-                continue
-            uv, _ = camera.project(quad)
-            out.append((float(depth.mean()), uv, colour * _shade(normal)))
+        for quad, normal in _FACES:
+            n = R @ np.asarray(normal)
+            idx = list(quad)
+            if float(n @ (eye - corners[idx].mean(axis=0))) <= 0:
+                continue  # facing away
+            out.append((float(depth[idx].mean()), uv[idx], colour * _shade(n)))
         return out
     hull = silhouette_uv(camera, shape, pose)
     if hull is None:
