@@ -17,6 +17,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import torch
 from numpy.typing import NDArray
@@ -24,6 +25,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from pilworld.config.rig import RigConfig
+from pilworld.perception.colour import segment
 from pilworld.types import DEFAULT_VIEWS, HEAD_VIEW, ChunkSpec
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo
 from pilworld.world_model.composite.cache import GRIPS, LAYERS_VERSION, chunk_channels, downsampled
@@ -86,10 +88,13 @@ class CompositeConfig:
 _PARTS, _SHADE, _DEPTH = slice(15, 19), slice(19, 20), slice(20, 21)
 
 
+LOST_MIN_PX = 4  # an object at rest whose visible silhouette covers fewer pixels is not checked
+LOST_SHARE = 0.5  # … and one whose colour shows on less than this share of it (±2 px) was lost by the blend
+_NEAR = np.ones((5, 5), np.uint8)
+
+
 def _table_colour(image: NDArray[np.uint8], plate: NDArray[np.uint8]) -> NDArray[np.uint8]:
     """A wrist view's empty scene: its table colour (moderately saturated, bright pixels), else the plate's."""
-    import cv2
-
     hsv = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2HSV)
     table = (hsv[..., 1] >= 18) & (hsv[..., 1] < 60) & (hsv[..., 2] > 120)
     rgb = np.median(image[table], axis=0) if table.sum() > 50 else np.median(plate.reshape(-1, 3), axis=0)
@@ -311,26 +316,39 @@ class CompositeWorldModel(nn.Module):
         assert spec is not None
         plate = (self.plate.permute(1, 2, 0).numpy() * 255.0).round().astype(np.uint8)
         out: dict[str, NDArray[np.uint8]] = {}
+        objects = scene.objects
+        colours = [spec.object(o.name).colour for o in objects]
         for view, frames in by_view.items():
-            # The head view keeps the real pixels of objects at rest; a moving wrist camera's reprojection loses
-            # them as it turns away, so wrist views show every tracked object where it is.
-            index = [i for i, o in enumerate(scene.objects) if view != HEAD_VIEW or o.name in moved]
-            if not index:
-                out[view] = frames
-                continue
             cams = view_cameras(rig, view, layers.poses)
-            if cams is None:
+            if cams is None or not objects:
                 out[view] = frames
                 continue
-            background = plate if view == HEAD_VIEW else _table_colour(np.asarray(request.current[view]), plate)
-            colours = [spec.object(scene.objects[i].name).colour for i in index]
+            head = view == HEAD_VIEW
+            background = plate if head else _table_colour(np.asarray(request.current[view]), plate)
+            # Ours to draw: in a wrist view every object (a turning wrist camera's reprojection loses what leaves
+            # its view); in the head view the moving ones, and any at rest that the blend lost (an arm passing
+            # over it), while those it shows keep their real pixels.
+            erase = [not head or o.name in moved for o in objects]
             new = frames.copy()
             for k, cam in enumerate(cams):
-                drawn = [(scene.objects[i].shape, poses[k][i], scene.objects[i].colour) for i in index]
+                drawn = [(o.shape, poses[k][i], o.colour) for i, o in enumerate(objects)]
                 depth = np.asarray(layers.depth[view][k], np.float32)
                 img, masks = draw_objects(new[k], cam, drawn, depth)
+                use = list(erase)
+                if head and not all(use):
+                    seen = segment(new[k], [c for c, e in zip(colours, erase, strict=True) if not e])
+                    for i, o in enumerate(objects):
+                        m = masks[i]
+                        if not use[i] and m.sum() >= LOST_MIN_PX:
+                            near = cv2.dilate(m.astype(np.uint8), _NEAR) > 0  # an estimate a pixel or two off
+                            use[i] = float((seen[o.name] & near).sum()) < LOST_SHARE * float(m.sum())
+                frame = new[k].copy()
+                for i in range(len(objects)):
+                    if use[i]:
+                        frame[masks[i]] = img[masks[i]]
                 robot = np.asarray(layers.parts[view][k]) > 0
-                new[k] = erase_elsewhere(img, colours, [masks[j] for j in range(len(index))], robot, background)
+                ours = [i for i in range(len(objects)) if erase[i]]
+                new[k] = erase_elsewhere(frame, [colours[i] for i in ours], [masks[i] for i in ours], robot, background)
             out[view] = new
         return out, grips.astype(np.float32)
 
