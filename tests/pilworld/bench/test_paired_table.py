@@ -25,13 +25,13 @@ from pilworld.bench.paired import (
     select_variants,
 )
 from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants
-from pilworld.world_model import V1_CHECKPOINT
 from pilworld.cli.bench import DEFAULT_RIG
 from pilworld.cli.main import main
 from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.paired.runner import TIMINGS_FILE
 from pilworld.policies.registry import policy_names
+from pilworld.world_model import V1_CHECKPOINT
 from tests.pilworld.metrics.synthetic import ROUNDS, K, SynthPair, write_paired
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
