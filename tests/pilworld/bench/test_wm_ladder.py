@@ -140,7 +140,9 @@ def test_autoencoded_env_changes_images_but_not_states(tiny_dir: Path) -> None:
         for v in VIEWS:
             assert o.images[v].shape == r.images[v].shape
             assert not np.array_equal(o.images[v], r.images[v])
-        np.testing.assert_array_equal(o.images["cam_high"], ae(np.asarray(r.images["cam_high"])[None])[0])
+        # The env decodes a batch, this a single frame: convolutions may round a pixel the other way (±1).
+        again = ae(np.asarray(r.images["cam_high"])[None])[0]
+        np.testing.assert_allclose(o.images["cam_high"].astype(int), again.astype(int), atol=1)
     assert set(env.mse) == set(VIEWS) and all(len(m) == 1 + spec.frames for m in env.mse.values())
     # A model without encode/decode gets a reason instead of an autoencoder.
     reason = wl.autoencoder_for(wl.SeedShifted(native, 0))

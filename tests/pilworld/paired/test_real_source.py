@@ -20,6 +20,7 @@ from pilworld.metrics.pairs import load_pairs
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.paired.runner import CONFIG_FILE, TIMINGS_FILE, load_model
 from pilworld.types import ChunkSpec
+from pilworld.world_model import V1_CHECKPOINT
 from pilworld.world_model.model import HistoryAblated, PilWorldModel
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
@@ -35,6 +36,7 @@ def _cfg(out: Path, **kw: object) -> PairedConfig:
         "subtasks": 1,
         "out": str(out),
         "spec": ONE,
+        "world_model": str(V1_CHECKPOINT),  # the history ablation and the task adapters are v1's
     }
     args.update(kw)
     return PairedConfig(**args)  # type: ignore[arg-type]

@@ -14,6 +14,7 @@ from pilworld.data.reader import EpisodeStore
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.paired.runner import TIMINGS_FILE, PairedSubtask, plan_subtasks
 from pilworld.types import ChunkSpec
+from pilworld.world_model import V1_CHECKPOINT
 from tests.pilworld.paired.digest import dataset_digest
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
@@ -163,7 +164,14 @@ def test_a_policy_served_over_openpi_gives_the_local_result(tmp_path: Path) -> N
 def test_several_tasks_in_one_run(tmp_path: Path) -> None:
     out = tmp_path / "multi"
     summary = paired_run(
-        _cfg(out, task="stack_blocks,sort_cubes", subtasks=1, spec=ChunkSpec(rounds=1)), progress=False
+        _cfg(
+            out,
+            task="stack_blocks,sort_cubes",
+            subtasks=1,
+            spec=ChunkSpec(rounds=1),
+            world_model=str(V1_CHECKPOINT),  # v1 has a stage-2 adapter per task
+        ),
+        progress=False,
     )
     assert summary["pairs_planned"] == 2
     eps = EpisodeStore(out).episodes
