@@ -35,12 +35,14 @@ from numpy.typing import NDArray
 
 from pilworld.config.rig import RigConfig
 from pilworld.judges.vision_fit import BowlShape, BoxShape, Pose2D, Shape, fit_pose
+from pilworld.judges.vision_success import IN_HAND_PX, IN_HAND_SHARE
 from pilworld.judges.vision_tasks import TaskSpec, task_spec
 from pilworld.judges.vision_views import frame_cameras, label_image, object_view
 from pilworld.perception.colour import largest_blob
 from pilworld.types import ARM_LAYOUT, HEAD_VIEW
+from pilworld.world_model.composite.layers import HOLD_MAX
 
-HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest on an object
+HOLD_MIN = 0.06  # measured grip between this and HOLD_MAX: the fingers rest on an object (the policy's bounds)
 FINGER_HALF_WIDTH = 0.011  # the pads' half-width across the closing axis [m] (the simulated gripper's)
 FINGERTIP_BELOW_TCP = 0.018  # the fingertips reach this far below the tool point [m]
 PINCH_DEPTH = 0.004  # the fingertips must reach this far below an object's top to hold it (a bowl: its lip band) [m]
@@ -284,9 +286,9 @@ def estimate_scene(
         if not bool(ok):
             continue
         vv, uu = np.mgrid[0 : cams[wrist].height, 0 : cams[wrist].width]
-        disc = (uu - uv[0]) ** 2 + (vv - uv[1]) ** 2 <= (4.0 * cams[wrist].width / 128.0) ** 2
+        disc = (uu - uv[0]) ** 2 + (vv - uv[1]) ** 2 <= (IN_HAND_PX * cams[wrist].width / 128.0) ** 2
         shares = {n: float(m[disc].mean()) for n, m in labels[wrist].masks.items()} if disc.any() else {}
-        if shares and max(shares.values()) >= 0.4:
+        if shares and max(shares.values()) >= IN_HAND_SHARE:  # the judge's own "held" test
             held[max(shares, key=lambda n: shares[n])] = si
     placed: list[TrackedObject] = []
     pending = []
