@@ -52,6 +52,9 @@ FRAME_GAP = 0.02
 SETTLE_TIME = 0.1
 MOTION_EPS = 0.002  # ≈ half a count: less than this in SETTLE_TIME is standing still
 AT_POSITION_COUNTS = 2.0  # |gPO - goal| within this many counts → gOBJ 3
+# Automatic release counts as completed (0x0F) from this opening on: a quarter count short of fully open,
+# since a simulated servo approaches 1.0 without always landing on it exactly.
+RELEASED_OPENING = 0.999
 
 
 class FakeRobotiqGripper:
@@ -214,7 +217,7 @@ class FakeRobotiqGripper:
         if act & 0x10 and act & 0x01:  # automatic release: open, report 0x0B then 0x0F
             goal = 1.0
             if not self._major_fault() or self._fault in (0x0B, 0x0F):
-                self._fault = 0x0F if opening >= 0.999 else 0x0B
+                self._fault = 0x0F if opening >= RELEASED_OPENING else 0x0B
         elif self._activated and act & 0x08 and not self._major_fault():
             goal = self._count_to_opening(self._command[3])
         if goal is None:
