@@ -64,14 +64,38 @@ def protocol(quick: bool, *, subtasks: int | None = None, seed: int | None = Non
     return base
 
 
+def custom_variant(spec: str) -> ModelVariant:
+    """``NAME=PATH``: a world model of the user's (any checkpoint folder) run as one more variant.
+
+    The model runs as it is (no task adapter; its default sampling steps), so a folder from
+    ``pilworld train composite`` or ``pilworld train`` compares with the table's rows on the same pairs.
+    """
+    name, sep, path = spec.partition("=")
+    name, path = name.strip(), path.strip()
+    if not sep or not name or not path:
+        raise ValueError(f"--variants: expected a known name or NAME=PATH, got {spec!r}")
+    if name in {v.name for v in standard_variants()}:
+        raise ValueError(f"--variants: {name!r} is a standard variant's name; give your model another name")
+    v = ModelVariant(name, f"{name} ({path})", path, adapter="none", role="model", note=f"user model {path}")
+    v.check()
+    return v
+
+
 def select_variants(quick: bool, names: Sequence[str] | None = None) -> list[ModelVariant]:
-    """The variants to run: ``names`` (in that order) or, by mode, shipped + baseline (quick) / all (full)."""
+    """The variants to run: ``names`` (in that order) or, by mode, shipped + baseline (quick) / all (full).
+
+    A name of the form ``NAME=PATH`` adds the model folder at PATH as variant NAME (:func:`custom_variant`).
+    """
     every = {v.name: v for v in standard_variants()}
     if names:
-        unknown = [n for n in names if n not in every]
+        unknown = [n for n in names if n not in every and "=" not in n]
         if unknown:
-            raise ValueError(f"--variants: unknown {unknown} (known: {', '.join(every)})")
-        chosen = [every[n] for n in names]
+            raise ValueError(
+                f"--variants: unknown {unknown} (known: {', '.join(every)}; or NAME=PATH for a model folder)"
+            )
+        chosen = [every[n] if n in every else custom_variant(n) for n in names]
+        if len({v.name for v in chosen}) != len(chosen):
+            raise ValueError(f"--variants: a name appears twice in {list(names)}")
         if "pilworld" not in names:
             chosen.insert(0, every["pilworld"])  # the headline figures are the shipped model's
         return chosen

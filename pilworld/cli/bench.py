@@ -132,7 +132,11 @@ def register(sub: Any) -> None:
     pt.add_argument(
         "--out", type=Path, default=None, help="run folders (default bench_runs/paired-quick|full); resumed"
     )
-    pt.add_argument("--variants", default="", help="comma-separated variants (default: by mode; see docs/RESULTS.md)")
+    pt.add_argument(
+        "--variants",
+        default="",
+        help="comma-separated variants (default: by mode; see docs/RESULTS.md); NAME=PATH adds a model folder",
+    )
     pt.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 3 / 20)")
     pt.add_argument("--seed", type=int, default=None, help="first layout seed (default 6000000)")
     pt.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")

@@ -179,6 +179,65 @@ def blend(
     return out
 
 
+def blend_bytes(
+    x: torch.Tensor,
+    scal: torch.Tensor,
+    gates: torch.Tensor,
+    generated: torch.Tensor,
+    painter: RobotPainter,
+    plate: torch.Tensor,
+) -> torch.Tensor:
+    """Inference's :func:`blend` on uint8 base channels, straight to uint8 frames (N, 3, h, w).
+
+    The same composite as ``round(255 · blend(x))`` with less work: a candidate that is valid nowhere in
+    the chunk (the carry layers when objects are tracked, the plate without the head view) gets weight
+    exactly 0 in :func:`blend`'s softmax, so it is left out of the softmax and the sum; the robot's pixels
+    are looked up in the painter's table at those pixels only.
+    """
+    h, w = x.shape[-2:]
+    if gates.shape[-1] != w:
+        gates = F.interpolate(gates, size=(h, w), mode="bilinear", align_corners=False)
+        generated = F.interpolate(generated, size=(h, w), mode="bilinear", align_corners=False)
+    n = x.shape[0]
+    prior_ok, memory_ok = _flag(x, 3), _flag(x, 24)
+    head = (scal[:, 5] == 0)[:, None, None]
+    # validity of each candidate in CANDIDATES order (None: valid everywhere); images made only if used
+    valid: list[torch.Tensor | None] = [prior_ok, _flag(x, 10), _flag(x, 14), None, head.expand(n, h, w), memory_ok]
+    used = [c for c, ok in enumerate(valid) if ok is None or bool(ok.any())]
+
+    def image(c: int) -> torch.Tensor:
+        if c == 3:
+            return generated
+        if c == 4:
+            return _plate_at(plate, w)[None].expand(n, -1, -1, -1)
+        return _image(x, (0, 7, 11, -1, -1, 21)[c])
+
+    mask = torch.zeros((n, len(used), h, w), dtype=torch.bool)
+    for i, c in enumerate(used):
+        ok = valid[c]
+        if ok is not None:
+            mask[:, i] = ~ok
+    weights = torch.softmax(gates[:, used].masked_fill(mask, -1e4), 1)
+    images = {c: image(c) for c in used}
+    mixed = weights[:, 0:1] * images[used[0]]
+    for i, c in enumerate(used[1:], 1):  # blend's running sum, less the terms that are exactly 0
+        mixed = mixed + weights[:, i : i + 1] * images[c]
+    prior = images[0] if 0 in images else _image(x, 0)
+    memory = images[5] if 5 in images else _image(x, 21)
+    kept = torch.where(prior_ok[:, None], prior, memory)
+    free = _flag(x, 25) | ~(prior_ok | memory_ok)
+    scene = torch.where(free[:, None], mixed, kept)
+    out = (scene.clamp(0, 1) * 255.0).round().to(torch.uint8)
+    onehot = x[:, _PARTS] > 127
+    ids = (onehot * torch.arange(1, onehot.shape[1] + 1, dtype=torch.uint8)[None, :, None, None]).amax(1)
+    k, yy, xx = (ids > 0).nonzero(as_tuple=True)
+    if len(k):
+        shade, depth = x[k, _SHADE.start, yy, xx], x[k, _DEPTH.start, yy, xx]
+        colour = painter.paint_points(ids[k, yy, xx], shade, depth, scal[k, 5])
+        out[k, :, yy, xx] = (colour.clamp(0, 1) * 255.0).round().to(torch.uint8)
+    return out
+
+
 class CompositeWorldModel(nn.Module):
     """World model v2; see the module docstring. ``bind_rig`` swaps in a (re)calibrated rig's geometry."""
 
@@ -283,8 +342,7 @@ class CompositeWorldModel(nn.Module):
         small = torch.from_numpy(np.stack([downsampled(row, s) for row in base_np]))
         inp, cmd = net_inputs(small, scal)
         gates, generated, grips = self.net(inp, cmd)
-        out = blend(base, scal, gates, generated, self.painter, self.plate)
-        frames = (out.clamp(0, 1) * 255.0).round().to(torch.uint8).permute(0, 2, 3, 1).numpy()
+        frames = blend_bytes(base, scal, gates, generated, self.painter, self.plate).permute(0, 2, 3, 1).numpy()
         K = self.config.future
         by_view = {v: frames[i * K : (i + 1) * K] for i, v in enumerate(self.config.views)}
         states = layers.poses.astype(np.float32).copy()

@@ -129,6 +129,13 @@ class RobotPainter(nn.Module):
         out = self.table()[index] * on[..., None]
         return out.permute(0, 3, 1, 2)
 
+    def paint_points(
+        self, part_ids: torch.Tensor, shade: torch.Tensor, depth: torch.Tensor, view: torch.Tensor
+    ) -> torch.Tensor:
+        """:meth:`paint_bytes` at given pixels: part ids in 1 … 4, uint8 shade and depth, view, each (P,) → (P, 3)."""
+        index = (view.long() * (N_PARTS - 1) + part_ids.long() - 1) * 256 + shade.long()
+        return self.table()[index * 256 + depth.long()]
+
     def forward(
         self, parts_onehot: torch.Tensor, shade: torch.Tensor, depth: torch.Tensor, view: torch.Tensor
     ) -> torch.Tensor:

@@ -107,18 +107,28 @@ def draw_objects(
         for depth, uv, rgb in _polygons(camera, shape, pose, colour):
             parts.append((depth, index, uv, rgb))
     masks = {i: np.zeros((h, w), bool) for i in range(len(objects))}
-    canvas = np.zeros((h, w), np.uint8)
     for depth, index, uv, rgb in sorted(parts, key=lambda p: -p[0]):  # far to near
         if not np.all(np.isfinite(uv)) or np.abs(uv).max() > 8 * max(h, w):
             continue
-        canvas[:] = 0
-        cv2.fillConvexPoly(canvas, np.round(uv * (1 << _SHIFT)).astype(np.int32), 1, lineType=cv2.LINE_8, shift=_SHIFT)
-        px = (canvas > 0) & (depth < zbuf)
-        out[px] = np.clip(rgb, 0, 255).astype(np.uint8)
-        zbuf[px] = depth
+        # Rasterised in the polygon's bounding window only (a face covers a few dozen of 16k pixels); the
+        # window moves by whole pixels, so the fill is the full frame's.
+        pts = np.round(uv * (1 << _SHIFT)).astype(np.int32)
+        x0, y0 = max(0, int(pts[:, 0].min()) >> _SHIFT), max(0, int(pts[:, 1].min()) >> _SHIFT)
+        x1, y1 = min(w, (int(pts[:, 0].max()) >> _SHIFT) + 2), min(h, (int(pts[:, 1].max()) >> _SHIFT) + 2)
+        if x1 <= x0 or y1 <= y0:
+            continue
+        canvas = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        offset = np.array([x0 << _SHIFT, y0 << _SHIFT], np.int32)
+        cv2.fillConvexPoly(canvas, pts - offset, 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        win = (slice(y0, y1), slice(x0, x1))
+        px = (canvas > 0) & (depth < zbuf[win])
+        if not px.any():
+            continue
+        out[win][px] = np.clip(rgb, 0, 255).astype(np.uint8)
+        zbuf[win][px] = depth
         for m in masks.values():
-            m[px] = False
-        masks[index] |= px
+            m[win][px] = False
+        masks[index][win] |= px
     return out, masks
 
 

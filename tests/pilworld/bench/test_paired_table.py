@@ -239,3 +239,19 @@ def test_chart_with_missing_values(tmp_path: Path) -> None:
     }
     path = paired_table_chart(variants, TARGETS, tmp_path / "t.png")
     assert path.read_bytes()[:8] == PNG
+
+
+def test_a_model_folder_runs_as_a_named_variant(tmp_path: Path) -> None:
+    from pilworld.world_model import DEFAULT_CHECKPOINT
+
+    chosen = select_variants(False, ["pilworld_v1", f"mine={DEFAULT_CHECKPOINT}"])
+    assert [v.name for v in chosen] == ["pilworld", "pilworld_v1", "mine"]
+    assert chosen[2].world_model == str(DEFAULT_CHECKPOINT) and chosen[2].adapter == "none"
+    with pytest.raises(FileNotFoundError, match="mine"):
+        select_variants(False, [f"mine={tmp_path}"])  # no config.json there
+    with pytest.raises(ValueError, match="standard variant"):
+        select_variants(False, [f"ctrl_world={DEFAULT_CHECKPOINT}"])
+    with pytest.raises(ValueError, match="NAME=PATH"):
+        select_variants(False, ["=x"])
+    with pytest.raises(ValueError, match="twice"):
+        select_variants(False, [f"a={DEFAULT_CHECKPOINT}", f"a={DEFAULT_CHECKPOINT}"])

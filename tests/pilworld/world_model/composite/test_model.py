@@ -210,3 +210,40 @@ def test_objects_can_be_turned_off(rig32: RigConfig) -> None:
     assert on._scene_for(other) is not on._scene
     on.begin_rollout(dict(req.current), req.state, "fold the towel.")  # a task the knowledge does not list
     assert on._scene is None
+
+
+def test_the_byte_composite_equals_the_float_one() -> None:
+    """Inference's sparse uint8 composite is the training composite rounded to bytes, pixel for pixel."""
+    from pilworld.world_model.composite.cache import BASE_CHANNELS
+    from pilworld.world_model.composite.model import blend, blend_bytes
+    from pilworld.world_model.composite.net import RobotPainter
+
+    torch.manual_seed(0)
+    g = torch.Generator().manual_seed(1)
+    n, s = 9, 32
+    x = torch.randint(0, 256, (n, BASE_CHANNELS, s, s), dtype=torch.uint8, generator=g)
+    for c in (3, 10, 14, 24, 25):  # flags are 0 or 255
+        x[:, c] = torch.where(torch.rand(n, s, s, generator=g) < 0.6, 255, 0).to(torch.uint8)
+    ids = torch.randint(0, 5, (n, s, s), generator=g) * (torch.rand(n, s, s, generator=g) < 0.3)
+    x[:, 15:19] = torch.stack([(ids == p) for p in range(1, 5)], 1).to(torch.uint8) * 255  # one part per pixel
+    scal = torch.zeros(n, 8)
+    scal[:, 5] = torch.arange(n) % 3  # head and both wrist views
+    gates = torch.randn(n, len(CANDIDATES), 8, 8, generator=g) * 3
+    generated = torch.rand(n, 3, 8, 8, generator=g)
+    painter = RobotPainter()
+    plate = torch.rand(3, s, s, generator=g)
+    want = (blend(x, scal, gates, generated, painter, plate).clamp(0, 1) * 255.0).round().to(torch.uint8)
+    got = blend_bytes(x, scal, gates, generated, painter, plate)
+    assert got.dtype == torch.uint8 and got.shape == want.shape
+    assert (got.int() - want.int()).abs().max() <= 1  # float rounding at .5 only
+    assert (got != want).float().mean() < 1e-3
+    free = ((x[:, 25] > 127) | ~((x[:, 3] > 127) | (x[:, 24] > 127))) & (ids == 0)
+    assert free.any() and (ids > 0).any() and (~free & (ids == 0)).any()  # every path was exercised
+    # Candidates valid nowhere (no carry layers, as with tracked objects; wrist views only: no plate) are
+    # skipped, and that changes nothing.
+    x[:, 10] = 0
+    x[:, 14] = 0
+    scal[:, 5] = 1 + torch.arange(n) % 2
+    want = (blend(x, scal, gates, generated, painter, plate).clamp(0, 1) * 255.0).round().to(torch.uint8)
+    got = blend_bytes(x, scal, gates, generated, painter, plate)
+    assert (got.int() - want.int()).abs().max() <= 1 and (got != want).float().mean() < 1e-3

@@ -193,6 +193,58 @@ def test_a_drawn_cube_has_its_colour_and_hides_behind_a_nearer_robot(rig: RigCon
     assert bowl_masks[0].sum() > masks[0].sum()
 
 
+def _draw_full_frame(image: np.ndarray, camera: Any, objects: Any, robot_depth: np.ndarray) -> Any:
+    """draw_objects as it was first written: every face rasterised over the whole frame (the reference)."""
+    import cv2
+
+    from pilworld.world_model.composite.object_draw import _SHIFT, _polygons
+
+    h, w = image.shape[:2]
+    out = image.copy()
+    zbuf = np.where(robot_depth > 0, robot_depth, np.inf).astype(np.float64)
+    parts = [(d, i, uv, rgb) for i, (sh, po, co) in enumerate(objects) for d, uv, rgb in _polygons(camera, sh, po, co)]
+    masks = {i: np.zeros((h, w), bool) for i in range(len(objects))}
+    for depth, index, uv, rgb in sorted(parts, key=lambda p: -p[0]):
+        if not np.all(np.isfinite(uv)) or np.abs(uv).max() > 8 * max(h, w):
+            continue
+        canvas = np.zeros((h, w), np.uint8)
+        cv2.fillConvexPoly(canvas, np.round(uv * (1 << _SHIFT)).astype(np.int32), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        px = (canvas > 0) & (depth < zbuf)
+        out[px] = np.clip(rgb, 0, 255).astype(np.uint8)
+        zbuf[px] = depth
+        for m in masks.values():
+            m[px] = False
+        masks[index] |= px
+    return out, masks
+
+
+def test_drawing_in_windows_equals_drawing_over_the_frame(rig: RigConfig) -> None:
+    rng = np.random.default_rng(3)
+    cam = rig.head_camera_model
+    shapes = [o.shape for t in ("sort_cubes", "stack_blocks", "stack_bowls") for o in task_spec(t).objects]
+    drawn = at_border = 0
+    for trial in range(40):
+        objs = [
+            (
+                shapes[int(rng.integers(len(shapes)))],
+                # some well inside the view, some across its border, a few off it
+                Pose2D(*rng.uniform([-0.5, -0.45, 0.0, -math.pi], [0.5, 0.35, 0.2, math.pi]).tolist()),
+                rng.uniform(0, 255, 3),
+            )
+            for _ in range(int(rng.integers(1, 5)))
+        ]
+        image = rng.integers(0, 256, (128, 128, 3), dtype=np.uint8)
+        robot = np.where(rng.random((128, 128)) < 0.3, rng.uniform(0.2, 1.5, (128, 128)), 0).astype(np.float32)
+        got, got_masks = draw_objects(image, cam, objs, robot)
+        want, want_masks = _draw_full_frame(image, cam, objs, robot)
+        assert np.array_equal(got, want), trial
+        assert all(np.array_equal(got_masks[i], want_masks[i]) for i in want_masks), trial
+        union = np.any([m for m in want_masks.values()], axis=0)
+        drawn += int(union.sum())
+        at_border += int(union[[0, -1]].any() or union[:, [0, -1]].any())
+    assert drawn > 2000 and at_border >= 3  # the comparison saw objects, some of them cut by the frame
+
+
 def test_a_ghost_is_erased_but_the_object_and_the_robot_are_kept(rig: RigConfig) -> None:
     obj = task_spec("sort_cubes").objects[0]
     image = np.full((32, 32, 3), 180, np.uint8)
