@@ -76,6 +76,16 @@ _SPHERE_PTS = (
 )  # circumscribe the 48-point hull roughly
 
 
+def _lut(ids: NDArray[np.uint8], table: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """``cv2.LUT`` of a (N, H, W) uint8 image stack, as one 2-D image.
+
+    OpenCV reads a 3-D array as H × W × channels, and 5.x accepts at most 128 channels, so a stack of one
+    224-pixel-wide frame would be refused; a 2-D view of the same bytes works on 4.x and 5.x alike.
+    """
+    flat = np.ascontiguousarray(ids).reshape(-1, ids.shape[-1])
+    return np.asarray(cv2.LUT(flat, table), dtype=np.uint8).reshape(ids.shape)
+
+
 @dataclass(frozen=True, eq=False)
 class _ViewGrid:
     """What never changes for a view: the pinhole canvas it is drawn on and each pixel's ray."""
@@ -385,7 +395,7 @@ class AnalyticRobotRenderer:
             Rc = R[:, None] @ rot
             grid = self.grids[view.name]
             ids = self._draw(Pc, Rc, grid)  # (N, H_c, W_c) geom index + 1
-            out_parts: NDArray[np.uint8] = np.asarray(cv2.LUT(ids, self.part_lut256), dtype=np.uint8)
+            out_parts: NDArray[np.uint8] = _lut(ids, self.part_lut256)
             if depth or shaded:
                 z, shade = self._cast(ids, Pc, Rc, grid)
             if grid.remap is not None:
@@ -616,6 +626,6 @@ class AnalyticRobotRenderer:
         light_img = light.reshape(N, H, W)
         # Colour by geom through per-channel lookup tables (OpenCV, uint8 → uint8), then the light.
         for ch in range(3):
-            base = cv2.LUT(ids, self.colour_lut[ch]).astype(np.float32)
+            base = _lut(ids, self.colour_lut[ch]).astype(np.float32)
             shade_img[..., ch] = np.minimum(base * light_img + 0.5, 255)
         return z_img, shade_img
