@@ -109,7 +109,12 @@ def test_sigkill_loses_no_acknowledged_label(run: Path) -> None:
         assert Client(url2, tokens[1]).get("/api/me").json()["done"] == 4
     finally:
         proc2.send_signal(signal.SIGINT)  # Ctrl-C: stops and exports
-        out, _ = proc2.communicate(timeout=120)
+        try:
+            out, _ = proc2.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc2.kill()
+            out, _ = proc2.communicate()
+            raise AssertionError(f"the server did not stop within 120 s of Ctrl-C; it printed:\n{out}") from None
     assert proc2.returncode == 0, out
     assert "exported labels" in out and "human_1 4, human_2 4" in out
     assert AnnotationStore(run).counts() == {1: 4, 2: 4}
