@@ -141,6 +141,18 @@ def candidates(
     return images, valid
 
 
+def _at_resolution(
+    gates: torch.Tensor, generated: torch.Tensor, size: tuple[int, int]
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Gates and generated fill upsampled to the layers' (h, w): they choose between full-resolution layers."""
+    if tuple(gates.shape[-2:]) == size:
+        return gates, generated
+    return (
+        F.interpolate(gates, size=size, mode="bilinear", align_corners=False),
+        F.interpolate(generated, size=size, mode="bilinear", align_corners=False),
+    )
+
+
 def blend(
     x: torch.Tensor,
     scal: torch.Tensor,
@@ -149,12 +161,9 @@ def blend(
     painter: RobotPainter,
     plate: torch.Tensor,
 ) -> torch.Tensor:
-    """The composite at the resolution of the base channels ``x`` (uint8, or float in [0, 1]); gates and
-    generated are resized to it."""
-    h, w = x.shape[-2:]
-    if gates.shape[-1] != w:  # the gates choose between full-resolution layers
-        gates = F.interpolate(gates, size=(h, w), mode="bilinear", align_corners=False)
-        generated = F.interpolate(generated, size=(h, w), mode="bilinear", align_corners=False)
+    """The composite (training's, differentiable) at the resolution of the float base channels ``x`` in
+    [0, 1]; gates and generated are resized to it. Inference uses :func:`blend_bytes`, the same rounded."""
+    gates, generated = _at_resolution(gates, generated, (x.shape[-2], x.shape[-1]))
     images, valid = candidates(x, generated, plate, scal[:, 5])
     # Away from the hands nothing moves: the prior where it has the pixel, else the memory; the gates decide
     # only near the tools' paths (and where neither layer has the pixel, e.g. where the robot was all round).
@@ -166,15 +175,9 @@ def blend(
     for c in range(1, len(images)):  # a running sum: no (N, C, 3, h, w) stack of the candidates
         mixed = mixed + weights[:, c : c + 1] * images[c]
     scene = torch.where(free[:, None], mixed, kept)
-    if x.dtype == torch.uint8:  # inference: an exact render, one part per pixel — the painter's table
-        onehot = x[:, _PARTS] > 127
-        ids = (onehot * torch.arange(1, onehot.shape[1] + 1, dtype=torch.uint8)[None, :, None, None]).amax(1)
-        robot = painter.paint_bytes(ids, x[:, _SHADE.start], x[:, _DEPTH.start], scal[:, 5])
-        mask = (ids > 0)[:, None].float()
-    else:
-        parts = x[:, _PARTS]
-        robot = painter(parts, x[:, _SHADE], x[:, _DEPTH], scal[:, 5])
-        mask = parts.sum(1, keepdim=True).clamp(0, 1)
+    parts = x[:, _PARTS]
+    robot = painter(parts, x[:, _SHADE], x[:, _DEPTH], scal[:, 5])
+    mask = parts.sum(1, keepdim=True).clamp(0, 1)
     out: torch.Tensor = mask * robot + (1 - mask) * scene
     return out
 
@@ -189,15 +192,13 @@ def blend_bytes(
 ) -> torch.Tensor:
     """Inference's :func:`blend` on uint8 base channels, straight to uint8 frames (N, 3, h, w).
 
-    The same composite as ``round(255 · blend(x))`` with less work: a candidate that is valid nowhere in
+    The same composite as ``round(255 · blend(x / 255))`` with less work: a candidate that is valid nowhere in
     the chunk (the carry layers when objects are tracked, the plate without the head view) gets weight
     exactly 0 in :func:`blend`'s softmax, so it is left out of the softmax and the sum; the robot's pixels
     are looked up in the painter's table at those pixels only.
     """
     h, w = x.shape[-2:]
-    if gates.shape[-1] != w:
-        gates = F.interpolate(gates, size=(h, w), mode="bilinear", align_corners=False)
-        generated = F.interpolate(generated, size=(h, w), mode="bilinear", align_corners=False)
+    gates, generated = _at_resolution(gates, generated, (h, w))
     n = x.shape[0]
     prior_ok, memory_ok = _flag(x, 3), _flag(x, 24)
     head = (scal[:, 5] == 0)[:, None, None]
@@ -228,6 +229,7 @@ def blend_bytes(
     free = _flag(x, 25) | ~(prior_ok | memory_ok)
     scene = torch.where(free[:, None], mixed, kept)
     out = (scene.clamp(0, 1) * 255.0).round().to(torch.uint8)
+    # an exact render: one part per pixel, ids 1 … 4 from the one-hot channels
     onehot = x[:, _PARTS] > 127
     ids = (onehot * torch.arange(1, onehot.shape[1] + 1, dtype=torch.uint8)[None, :, None, None]).amax(1)
     k, yy, xx = (ids > 0).nonzero(as_tuple=True)

@@ -81,7 +81,7 @@ class RobotPainter(nn.Module):
     """The robot's colour at a pixel from its render there: part one-hot, shade, depth, view (a per-pixel MLP).
 
     Applied only where the render has robot, so it costs in proportion to the robot's pixels. At inference
-    the render is exact (one part per pixel, shade and depth quantised to bytes), so :meth:`paint_bytes`
+    the render is exact (one part per pixel, shade and depth quantised to bytes), so :meth:`paint_points`
     looks the colour up in a table of every (view, part, shade, depth), the MLP evaluated once per weights.
     """
 
@@ -119,20 +119,11 @@ class RobotPainter(nn.Module):
             self._table_key = key
         return self._table
 
-    def paint_bytes(
-        self, part_ids: torch.Tensor, shade: torch.Tensor, depth: torch.Tensor, view: torch.Tensor
-    ) -> torch.Tensor:
-        """Part ids (N, h, w) in 0 … 4 and uint8 shade and depth (N, h, w), view (N,) → RGB (N, 3, h, w), 0 off it."""
-        on = part_ids > 0
-        index = (view.long()[:, None, None] * (N_PARTS - 1) + (part_ids.long() - 1).clamp(min=0)) * 256 + shade.long()
-        index = index * 256 + depth.long()
-        out = self.table()[index] * on[..., None]
-        return out.permute(0, 3, 1, 2)
-
     def paint_points(
         self, part_ids: torch.Tensor, shade: torch.Tensor, depth: torch.Tensor, view: torch.Tensor
     ) -> torch.Tensor:
-        """:meth:`paint_bytes` at given pixels: part ids in 1 … 4, uint8 shade and depth, view, each (P,) → (P, 3)."""
+        """The robot's colour at given pixels from the table: part ids in 1 … 4, uint8 shade and depth, view,
+        each (P,) → RGB (P, 3) in [0, 1]."""
         index = (view.long() * (N_PARTS - 1) + part_ids.long() - 1) * 256 + shade.long()
         return self.table()[index * 256 + depth.long()]
 

@@ -113,8 +113,9 @@ def draw_objects(
         # Rasterised in the polygon's bounding window only (a face covers a few dozen of 16k pixels); the
         # window moves by whole pixels, so the fill is the full frame's.
         pts = np.round(uv * (1 << _SHIFT)).astype(np.int32)
-        x0, y0 = max(0, int(pts[:, 0].min()) >> _SHIFT), max(0, int(pts[:, 1].min()) >> _SHIFT)
-        x1, y1 = min(w, (int(pts[:, 0].max()) >> _SHIFT) + 2), min(h, (int(pts[:, 1].max()) >> _SHIFT) + 2)
+        lo, hi = pts.min(axis=0) >> _SHIFT, pts.max(axis=0) >> _SHIFT
+        x0, y0 = max(0, int(lo[0])), max(0, int(lo[1]))
+        x1, y1 = min(w, int(hi[0]) + 2), min(h, int(hi[1]) + 2)
         if x1 <= x0 or y1 <= y0:
             continue
         canvas = np.zeros((y1 - y0, x1 - x0), np.uint8)
