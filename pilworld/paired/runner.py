@@ -19,7 +19,6 @@ between runs).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -30,20 +29,21 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from hw_drivers.errors import SafetyViolationError
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.data.atomic import write_json
 from pilworld.data.outcomes import record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
-from pilworld.envs import ImaginedEnv, RobotEnv, SafetyFilter
-from pilworld.paired.episodes import rollout_episode
+from pilworld.envs import RobotEnv
+from pilworld.imagine.branch import branch_episode, run_imagined
 from pilworld.paired.operator import Operator
 from pilworld.paired.real_source import RealBranchSource
 from pilworld.paired.stations import open_station
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
+from pilworld.starts.sources import PAIRED_STARTS
+from pilworld.starts.store import StartsWriter
 from pilworld.types import ChunkSpec, Subtask
 from pilworld.world_model.base import WorldModel
 
@@ -295,7 +295,17 @@ def paired_run(
     bar = tqdm(
         total=len(plan), initial=len(plan) - len(todo), desc="paired subtasks", unit="pair", disable=not progress
     )
-    with open_station(cfg.rig, tasks[0], operator) as station, EpisodeWriter(root, store_spec) as writer:
+    with (
+        open_station(cfg.rig, tasks[0], operator) as station,
+        EpisodeWriter(root, store_spec) as writer,
+        StartsWriter(
+            root / PAIRED_STARTS,
+            dataset_spec(cfg.rig, "lossless", cfg.spec),
+            station.robot.spec,
+            cfg.spec,
+            rig=cfg.rig,
+        ) as starts,
+    ):
         robot = station.robot
         for pair in todo:
             have = done.get(pair.pair_id, set())
@@ -309,6 +319,10 @@ def paired_run(
                 "adapter": adapter or "",
                 "world_model": cfg.world_model or "packaged",
             }
+            if station.shared_starts:  # the same scene for every checkpoint: stored once
+                starts.add(start)
+            else:
+                starts.add(start, checkpoint=pair.checkpoint)
             for origin in station.order:
                 if origin in have:
                     continue
@@ -317,28 +331,23 @@ def paired_run(
                     if on_branch is not None:
                         on_branch(pair, origin)
                     continue
-                policy.reset(seed=pair.seed)
                 if origin == "imagined":
-                    env: ImaginedEnv | RobotEnv = ImaginedEnv(
+                    rollout = run_imagined(
                         model,
                         gamma,
                         cfg.spec,
-                        control_rate_hz=rig.control_rate_hz,
+                        robot.spec,
+                        policy,
+                        start,
                         seed=pair.seed,
                         steps=cfg.steps,
-                        safety=SafetyFilter(robot.spec),  # the robot's filter: same commands in both branches
+                        control_rate_hz=rig.control_rate_hz,
                     )
                 else:
+                    policy.reset(seed=pair.seed)
                     env = RobotEnv(robot, cfg.spec, pace=station.pace)  # a simulator may run ahead of real time
-                # A refused chunk ends an imagined rollout early (kept, and judged as it is); on the robot it raises.
-                stop_on = (SafetyViolationError,) if origin == "imagined" else ()
-                rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start, stop_on=stop_on)
-                # The first policy chunk's digest: equal in both branches (same start, policy and seed), which
-                # is the premise of comparing their first rounds frame by frame (pilworld.metrics.single_step).
-                ep_extra = {**extra, "chunk0": hashlib.sha256(rollout.chunks[0].tobytes()).hexdigest()[:16]}
-                if rollout.stopped:
-                    ep_extra["stopped"] = rollout.stopped
-                ep = rollout_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=ep_extra)
+                    rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
+                ep = branch_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra)
                 index = writer.append(ep)
                 if origin == "real":
                     verdicts = station.verdicts(sub, pair.checkpoint, index, rollout_length(rollout))

@@ -43,6 +43,11 @@ class Station(Protocol):
         """The order the branches of a pair run in."""
         ...
 
+    @property
+    def shared_starts(self) -> bool:
+        """Whether a subtask's start is the same scene for every checkpoint (stored once) or set up anew per pair."""
+        ...
+
     def start(self, subtask: Subtask, checkpoint: str, spec: ChunkSpec) -> Start: ...
 
     def verdicts(self, subtask: Subtask, checkpoint: str, episode_index: int, num_frames: int) -> list[Outcome]: ...
@@ -59,6 +64,7 @@ class SimStation:
 
     pace = False  # physics advances with each command; nothing is gained by waiting for the wall clock
     order = ("imagined", "real")  # the simulated clock stands still while the world model runs
+    shared_starts = True  # a layout seed lays out the same scene, bit for bit, whichever checkpoint runs
 
     def __init__(self, rig_path: str | Path, task: str) -> None:
         from hw_drivers.sim.robot import SimRobot
@@ -93,6 +99,7 @@ class HardwareStation:
     # Real branch first: its first chunk is computed from the start observation, which must be fresh
     # (the safety filter refuses stale ones); the imagined branch has no clock and runs after.
     order = ("real", "imagined")
+    shared_starts = False  # the operator sets each pair's scene up anew
 
     def __init__(
         self, rig_path: str | Path, operator: Operator | None = None, *, seed: int = 0, settle_s: float = 0.5
