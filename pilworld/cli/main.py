@@ -19,6 +19,7 @@ from pilworld.cli import (
     control_video,
     data,
     demo,
+    imagine,
     paired,
     policy,
     report,
@@ -43,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.register(sub)
     data.register(sub)
     paired.register(sub)
+    imagine.register(sub)
     bench.register(sub)
     policy.register(sub)
     report.register(sub)

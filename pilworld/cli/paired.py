@@ -46,6 +46,45 @@ def register(sub: Any) -> None:
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     r.set_defaults(handler=_run)
 
+    s = cmds.add_parser(
+        "record-starts",
+        help="record subtask starts (start observation + history) without running a policy (resumable)",
+        description="On the simulated rig: seeded layouts. On a hardware rig: the operator lays out each scene and "
+        "the rig records the start and its history while the arms hold still. pilworld imagine --starts DIR then "
+        "runs imagined-only branches from them.",
+    )
+    s.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    s.add_argument(
+        "--task", required=True, help="task(s): sort_cubes, stack_bowls, stack_blocks, comma-separated, or all"
+    )
+    s.add_argument("--count", type=int, required=True, help="starts per task")
+    s.add_argument("--out", type=Path, required=True, help="starts folder (created, or resumed)")
+    s.add_argument("--seed", type=int, default=0, help="layout seed of the first starts (default 0)")
+    s.add_argument("--rounds", type=int, default=5, help="closed-loop rounds the starts are meant for (default 5)")
+    s.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+    s.set_defaults(handler=_record_starts)
+
+
+def _record_starts(args: argparse.Namespace) -> int:
+    from pilworld.paired.record_starts import record_starts
+    from pilworld.types import ChunkSpec
+
+    if args.count < 1:
+        raise ValueError(f"--count: expected at least 1, got {args.count}")
+    summary = record_starts(
+        str(args.rig),
+        args.task,
+        args.count,
+        args.out,
+        seed=args.seed,
+        spec=ChunkSpec(rounds=args.rounds),
+        progress=not args.json,
+    )
+    print(f"record-starts: {summary['starts_recorded']} of {summary['starts_planned']} starts recorded in {args.out}")
+    if args.json:
+        print(json.dumps(summary))
+    return 0
+
 
 def _run(args: argparse.Namespace) -> int:
     from pilworld.paired import PairedConfig, paired_run

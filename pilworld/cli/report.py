@@ -26,6 +26,15 @@ def register(sub: Any) -> None:
         metavar="N",
         help="embed videos of the first N pairs only (default all); the others are listed without video",
     )
+    p.add_argument(
+        "--imagined",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="attach an imagined-only run (pilworld imagine --out DIR; repeatable): metrics.json and the report "
+        "then give each checkpoint's real success rate by PPI++ beside the classical interval",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.set_defaults(handler=_report)
 
@@ -35,6 +44,15 @@ def _report(args: argparse.Namespace) -> int:
 
     if args.max_pairs is not None and args.max_pairs < 0:
         raise ValueError(f"--max-pairs: expected an integer >= 0, got {args.max_pairs}")
+    if args.imagined:
+        from pilworld.metrics import write_metrics
+        from pilworld.ppi.outcomes import attach_runs, read_run_outcomes
+        from pilworld.ppi.section import check_outcomes
+
+        runs = [*[str(r) for r in args.imagined]]
+        check_outcomes(read_run_outcomes(args.run_dir, runs))  # n = 0 for a checkpoint: refused before anything
+        attach_runs(args.run_dir, runs)
+        write_metrics(args.run_dir)
     path = build_report(args.run_dir, args.out, max_pairs=args.max_pairs)
     stats = report_stats(path)
     print(f"report: {path} ({stats['bytes'] / 1e6:.2f} MB, {stats['videos']} videos)")

@@ -18,7 +18,7 @@ import dataclasses
 import json
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,11 +28,18 @@ from pilworld.data.atomic import write_json
 from pilworld.data.episode import Episode
 from pilworld.data.writer import EpisodeWriter
 from pilworld.paired.runner import PairedConfig, PairedSubtask, settings_diff, stored_branches, stored_config
+from pilworld.policies.base import PolicyError
 from pilworld.starts.sources import StartsSource, load_starts
 from pilworld.starts.store import StartsError, robot_spec_from_json, robot_spec_json
 from pilworld.types import ChunkSpec, RobotSpec
 
 CONFIG_FILE = "imagine_config.json"
+
+
+class ImagineError(ValueError):
+    """An imagined-only run that cannot go on (a policy that stopped answering, …); what is stored stays."""
+
+
 TIMINGS_FILE = "imagine_timings.jsonl"
 DEFAULT_RIG = str(Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml")
 
@@ -49,7 +56,9 @@ class ImagineConfig:
     adapter: str = "auto"
     steps: int | None = None
     video_mode: str = "lossless"
-    spec: ChunkSpec = field(default_factory=ChunkSpec)
+    spec: ChunkSpec | None = (
+        None  # None = the chunk timing the starts were recorded for (starts.json), else the default
+    )
     start_frame: int | None = None  # a plain dataset's start frame (default H_h)
     count: int | None = None  # the first ``count`` scenes of the source; None = all
 
@@ -67,6 +76,12 @@ class ImagineConfig:
         d.pop("count")  # more starts extend a run, as more subtasks extend a paired one
         return d
 
+    @property
+    def resolved_spec(self) -> ChunkSpec:
+        if self.spec is None:
+            raise ValueError("spec: not resolved yet (imagine_run takes it from the starts)")
+        return self.spec
+
     def paired(self, task: str) -> PairedConfig:
         """The paired-run settings an imagined branch of ``task`` runs under (model, adapter, spec)."""
         return PairedConfig(
@@ -79,7 +94,7 @@ class ImagineConfig:
             adapter=self.adapter,
             steps=self.steps,
             video_mode=self.video_mode,
-            spec=self.spec,
+            spec=self.resolved_spec,
         )
 
 
@@ -169,7 +184,8 @@ def check_paired_source(cfg: ImagineConfig, source: StartsSource) -> None:
     if source.kind != "paired":
         return
     have = stored_config(source.root.parent / "paired_config.json")
-    diff = settings_diff(have, {"rig": cfg.rig, "spec": json.loads(json.dumps(asdict(cfg.spec)))}, ("rig", "spec"))
+    want = {"rig": cfg.rig, "spec": json.loads(json.dumps(asdict(cfg.resolved_spec)))}
+    diff = settings_diff(have, want, ("rig", "spec"))
     if diff:
         raise ValueError(f"--starts: {source.root.parent} was run with other settings ({', '.join(diff)})")
 
@@ -194,7 +210,7 @@ def _worker_state(cfg_json: dict[str, Any], robot: dict[str, Any]) -> dict[str, 
             cfg=cfg,
             rig=rig,
             robot=robot_spec_from_json(robot),
-            gamma=ControlVideo.from_rig(rig, cfg.spec),
+            gamma=ControlVideo.from_rig(rig, cfg.resolved_spec),
             models={},
             policies={},
             stores={},
@@ -204,7 +220,7 @@ def _worker_state(cfg_json: dict[str, Any], robot: dict[str, Any]) -> dict[str, 
 
 def config_from_json(d: dict[str, Any], out: str = "") -> ImagineConfig:
     d = dict(d)
-    d["spec"] = ChunkSpec(**d["spec"])
+    d["spec"] = ChunkSpec(**d["spec"]) if d.get("spec") else None
     return ImagineConfig(out=out, **d)
 
 
@@ -225,7 +241,7 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
         store.load(job.episode_index),
         f"{job.starts_root} episode {job.episode_index}",
         start_frame=job.start_frame,
-        history=cfg.spec.history,
+        history=cfg.resolved_spec.history,
         fps=float(store.fps),
         episode_index=job.episode_index,
     )
@@ -234,19 +250,22 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
         w["models"][task] = load_model(cfg.paired(task), w["rig"], task)
     model, adapter = w["models"][task]
     if job.checkpoint not in w["policies"]:
-        w["policies"][job.checkpoint] = make_policy(job.checkpoint, w["rig"], cfg.spec)
+        w["policies"][job.checkpoint] = make_policy(job.checkpoint, w["rig"], cfg.resolved_spec)
     t0 = time.monotonic()
-    rollout = run_imagined(
-        model,
-        w["gamma"],
-        cfg.spec,
-        w["robot"],
-        w["policies"][job.checkpoint],
-        stored.start,
-        seed=job.seed,
-        steps=cfg.steps,
-        control_rate_hz=w["rig"].control_rate_hz,
-    )
+    try:
+        rollout = run_imagined(
+            model,
+            w["gamma"],
+            cfg.resolved_spec,
+            w["robot"],
+            w["policies"][job.checkpoint],
+            stored.start,
+            seed=job.seed,
+            steps=cfg.steps,
+            control_rate_hz=w["rig"].control_rate_hz,
+        )
+    except PolicyError as err:  # every branch stored so far stays; a rerun resumes from this one
+        raise ImagineError(f"checkpoint {job.checkpoint}, {job.pair_id}: {err}") from err
     extra = {
         "pair": job.pair_id,
         "sim_task": task,
@@ -301,10 +320,15 @@ def imagine_run(
     from pilworld.paired.runner import load_model
 
     root = Path(cfg.out)
-    source = load_starts(cfg.starts, history=cfg.spec.history, start_frame=cfg.start_frame)
+    history = cfg.spec.history if cfg.spec is not None else ChunkSpec().history
+    source = load_starts(cfg.starts, history=history, start_frame=cfg.start_frame)
     if not cfg.rig:
         cfg = dataclasses.replace(cfg, rig=str((source.meta or {}).get("rig") or DEFAULT_RIG))
+    if cfg.spec is None:
+        chunk = (source.meta or {}).get("chunk")
+        cfg = dataclasses.replace(cfg, spec=ChunkSpec(**chunk) if chunk else ChunkSpec())
     rig = RigConfig.load(cfg.rig)
+    spec = cfg.resolved_spec
     check_paired_source(cfg, source)
     robot = robot_spec_for(cfg, source)
     for task in sorted({s.subtask.task for s in source.starts}):
@@ -312,7 +336,10 @@ def imagine_run(
     from pilworld.policies.registry import make_policy
 
     for ckpt in cfg.checkpoints:
-        make_policy(ckpt, rig, cfg.spec)  # an unknown checkpoint name fails here, naming it
+        try:  # an unknown checkpoint name, or a policy server that does not answer, fails here, naming it
+            make_policy(ckpt, rig, spec)
+        except PolicyError as err:
+            raise ValueError(f"checkpoint {ckpt}: {err}") from err
     _check_config(root, cfg, write=False)
     jobs = plan_jobs(cfg, source)
     done = stored_branches(root)
@@ -328,7 +355,7 @@ def imagine_run(
         total=len(jobs), initial=len(jobs) - len(todo), desc="imagined subtasks", unit="branch", disable=not progress
     )
     if todo:
-        with EpisodeWriter(root, dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)) as writer:
+        with EpisodeWriter(root, dataset_spec(cfg.rig, cfg.video_mode, spec)) as writer:
             for result in run(todo, cfg_json, robot_json):
                 writer.append(result.episode)
                 seconds.append(result.seconds)

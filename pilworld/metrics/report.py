@@ -125,6 +125,9 @@ def compute_run_metrics(
 
     origins = {int(r["episode_index"]): str(r.get("origin") or "") for r in store.episodes}
     out["human_agreement"] = human_agreement(paired, origins, bootstrap=bootstrap, seed=seed)
+    from pilworld.ppi.section import ppi_section  # real success rates by PPI++ with the attached imagined-only runs
+
+    out["ppi"] = ppi_section(root)
     if single_step:
         out["single_step"] = single_step_metrics(store, paired.pairs, action_atol=action_atol, lpips=lpips)
     else:

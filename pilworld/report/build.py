@@ -222,6 +222,12 @@ def _charts(
     else:
         notes.append("Single-step error curves: " + ("no per-frame values in metrics.json single_step." if m else
                                                       "need metrics.json."))  # fmt: skip
+    ppi_chart = _ppi_chart(m)
+    if ppi_chart is not None:
+        out.append(ppi_chart)
+    elif m is not None:
+        reason = (m.get("ppi") or {}).get("reason") if isinstance(m.get("ppi"), Mapping) else None
+        notes.append(f"Real success rate by PPI++: {reason or 'no ppi section in metrics.json'}.")
     if any(any(v is not None for v in vals) for vals in closed_loop.values()):
         out.append(
             Chart(
@@ -237,6 +243,28 @@ def _charts(
             )
         )
     return out, notes, settings
+
+
+def _ppi_chart(m: Mapping[str, Any] | None) -> Chart | None:
+    section = m.get("ppi") if m is not None else None
+    if not isinstance(section, Mapping):
+        return None
+    rows = [
+        (str(c), e["classical"], e["ppi"], int(e["n"]), int(e["N"]))
+        for c, e in section.get("checkpoints", {}).items()
+        if isinstance(e, Mapping) and "ppi" in e
+    ]
+    if not rows:
+        return None
+    gains = ", ".join(f"{c} ×{float(section['checkpoints'][c]['ess_gain']):.2f}" for c, *_ in rows)
+    return Chart(
+        "Real success rate by PPI++",
+        data_uri("image/png", charts.ppi_intervals(rows)),
+        "Per checkpoint, the 95 % interval of the real success rate from the n paired subtasks' real outcomes alone "
+        "(grey) and with the N imagined-only subtasks added by prediction-powered inference (blue; PPI++ with power "
+        f"tuning, {section.get('method')} interval). Effective sample size gain per real trial: {gains}.",
+        "classical and prediction-powered intervals of the real success rate per checkpoint",
+    )
 
 
 def _summary(data: RunData, views: list[str], pairs: int) -> list[tuple[str, str]]:

@@ -96,3 +96,31 @@ def error_curves(
         ax.legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
     return _png(fig)
+
+
+def ppi_intervals(rows: Sequence[tuple[str, Mapping[str, float], Mapping[str, float], int, int]]) -> bytes:
+    """Per checkpoint, the classical interval (real trials alone) above the prediction-powered one.
+
+    ``rows``: (checkpoint, classical {estimate, lower, upper}, ppi {…}, n, N).
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 0.65 * len(rows) + 1.2))
+    for i, (_, cl, pp, _, _) in enumerate(rows):
+        for dy, iv, color, label in ((0.15, cl, "#7f7f7f", "classical (real only)"), (-0.15, pp, "#1f77b4", "PPI++")):
+            est = float(iv["estimate"])
+            lo, hi = float(iv["lower"]), float(iv["upper"])
+            ax.errorbar(
+                [min(max(est, 0.0), 1.0)],
+                [i + dy],
+                xerr=[[max(est - lo, 0.0)], [max(hi - est, 0.0)]],
+                fmt="o",
+                color=color,
+                capsize=3,
+                label=label if i == 0 else None,
+            )
+    ax.set_yticks(range(len(rows)), [f"{c} (n={n}, N={N})" for c, _, _, n, N in rows], fontsize=8)
+    ax.invert_yaxis()
+    ax.set(xlim=(-0.02, 1.02), xlabel="real success rate (95 % interval)")
+    ax.grid(alpha=0.3, axis="x")
+    ax.legend(loc="lower right", fontsize=8)
+    return _png(fig)
