@@ -192,6 +192,18 @@ def register(sub: Any) -> None:
     dr.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     dr.set_defaults(handler=_drivers)
 
+    pp = benches.add_parser(
+        "ppi",
+        help="PPI++ intervals on the simulated rig: coverage, widths vs the variance formula, effective sample size",
+    )
+    pp.add_argument("--pool", type=Path, default=None, help="a judged paired run to draw from (default: run one)")
+    pp.add_argument("--out", type=Path, default=Path("bench_runs/ppi"), help="where the pool is run (default)")
+    pp.add_argument("--draws", type=int, default=None, help="draws per checkpoint and setting (default 2000)")
+    pp.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
+    pp.add_argument("--quick", action="store_true", help="a 60-pair pool and 200 draws (≤ 5 minutes)")
+    pp.add_argument("--json", action="store_true", help="print the whole result as JSON")
+    pp.set_defaults(handler=_ppi)
+
     hl = benches.add_parser("hallucination", help="hallucination detector on injected faults and clean episodes")
     hl.add_argument("dataset", type=Path, help="a dataset of real-branch episodes (e.g. from pilworld sim collect)")
     hl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
@@ -783,6 +795,30 @@ def _drivers(args: argparse.Namespace) -> int:
     )
     if args.json:
         print(json.dumps(r))
+    return 0
+
+
+def _ppi(args: argparse.Namespace) -> int:
+    from pilworld.bench.ppi import run_ppi_bench
+
+    if args.draws is not None and args.draws < 1:
+        raise ValueError(f"--draws: expected at least 1, got {args.draws}")
+    r = run_ppi_bench(
+        pool=args.pool, out=args.out, quick=args.quick, draws=args.draws, seed=args.seed, progress=not args.json
+    )
+    if args.json:
+        print(json.dumps(r))
+        return 0
+    print(f"pool {r['pool']}: real success rate per checkpoint {r['pool_truth']}, per-pair rho {r['pool_rho']}")
+    print(f"{'method':<7} {'predictor':<14} {'n':>3} {'N':>4} {'cov PPI':>8} {'cov cl.':>8} {'ratio':>6} "
+          f"{'formula':>8} {'ESS gain':>9}")  # fmt: skip
+    for s in r["settings"]:
+        print(
+            f"{s['method']:<7} {s['predictor']:<14} {s['n']:>3} {s['N']:>4} {s['coverage_ppi']:>8.3f} "
+            f"{s['coverage_classical']:>8.3f} {s['width_ratio']:>6.3f} {s['width_ratio_formula']:>8.3f} "
+            f"{s['ess_gain_measured']:>9.2f}"
+        )
+    print(json.dumps(r["checks"]))
     return 0
 
 
