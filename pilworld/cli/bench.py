@@ -798,6 +798,10 @@ def _drivers(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cell(x: float | None, width: int, digits: int) -> str:
+    return f"{'—':>{width}}" if x is None else f"{x:>{width}.{digits}f}"
+
+
 def _ppi(args: argparse.Namespace) -> int:
     from pilworld.bench.ppi import run_ppi_bench
 
@@ -815,8 +819,8 @@ def _ppi(args: argparse.Namespace) -> int:
     for s in r["settings"]:
         print(
             f"{s['method']:<7} {s['predictor']:<14} {s['n']:>3} {s['N']:>4} {s['coverage_ppi']:>8.3f} "
-            f"{s['coverage_classical']:>8.3f} {s['width_ratio']:>6.3f} {s['width_ratio_formula']:>8.3f} "
-            f"{s['ess_gain_measured']:>9.2f}"
+            f"{s['coverage_classical']:>8.3f} {_cell(s['width_ratio'], 6, 3)} {_cell(s['width_ratio_formula'], 8, 3)} "
+            f"{_cell(s['ess_gain_measured'], 9, 2)}"
         )
     print(json.dumps(r["checks"]))
     return 0
