@@ -122,5 +122,5 @@ def ppi_intervals(rows: Sequence[tuple[str, Mapping[str, float], Mapping[str, fl
     ax.invert_yaxis()
     ax.set(xlim=(-0.02, 1.02), xlabel="real success rate (95 % interval)")
     ax.grid(alpha=0.3, axis="x")
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2, fontsize=8, frameon=False)
     return _png(fig)
