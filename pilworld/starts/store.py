@@ -159,7 +159,7 @@ class StartsWriter:
         self.root = Path(root)
         self.meta = {
             "format": FORMAT,
-            "rig": rig,
+            "rig": str(Path(rig).resolve()),  # imagine runs from any folder: not the recording's working directory
             "robot_spec": robot_spec_json(robot),
             "chunk": asdict(chunk),
         }
