@@ -27,7 +27,15 @@ from tqdm import tqdm
 from pilworld.data.atomic import write_json
 from pilworld.data.episode import Episode
 from pilworld.data.writer import EpisodeWriter
-from pilworld.paired.runner import PairedConfig, PairedSubtask, settings_diff, stored_branches, stored_config
+from pilworld.paired.runner import (
+    PairedConfig,
+    PairedSubtask,
+    branch_record,
+    check_checkpoints,
+    settings_diff,
+    stored_branches,
+    stored_config,
+)
 from pilworld.policies.base import PolicyError
 from pilworld.starts.sources import StartsSource, load_starts
 from pilworld.starts.store import StartsError, robot_spec_from_json, robot_spec_json
@@ -63,10 +71,7 @@ class ImagineConfig:
     count: int | None = None  # the first ``count`` scenes of the source; None = all
 
     def __post_init__(self) -> None:
-        if not self.checkpoints or any(not c.strip() for c in self.checkpoints):
-            raise ValueError(f"checkpoints: expected one or more names, got {self.checkpoints!r}")
-        if len(set(self.checkpoints)) != len(self.checkpoints):
-            raise ValueError(f"checkpoints: listed twice: {self.checkpoints!r}")
+        check_checkpoints(self.checkpoints)
         if self.count is not None and self.count < 1:
             raise ValueError(f"count: expected at least 1 start, got {self.count}")
 
@@ -251,7 +256,6 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
     model, adapter = w["models"][task]
     if job.checkpoint not in w["policies"]:
         w["policies"][job.checkpoint] = make_policy(job.checkpoint, w["rig"], cfg.resolved_spec)
-    t0 = time.monotonic()
     try:
         rollout = run_imagined(
             model,
@@ -275,15 +279,7 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
         "starts": job.starts_root,
     }
     ep = branch_episode(rollout, checkpoint=job.checkpoint, seed=job.seed, extra=extra)
-    seconds = time.monotonic() - t0
-    record = {
-        "pair": job.pair_id,
-        "origin": "imagined",
-        "seconds": round(seconds, 4),
-        "policy_ms": [round(t.policy_s * 1000, 2) for t in rollout.timings],
-        "env_ms": [round(t.env_s * 1000, 2) for t in rollout.timings],
-    }
-    return JobResult(job.order, ep, seconds, record)
+    return JobResult(job.order, ep, rollout.seconds, branch_record(job.pair_id, rollout))
 
 
 def _run_job_args(args: tuple[ImagineJob, dict[str, Any], dict[str, Any]]) -> JobResult:

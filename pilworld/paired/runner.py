@@ -71,6 +71,14 @@ class PairedSubtask:
         return self.subtask.seed * 100 + self.subtask.index
 
 
+def check_checkpoints(checkpoints: Sequence[str]) -> None:
+    """One or more checkpoint names, none blank, none twice (paired and imagined-only runs alike)."""
+    if not checkpoints or any(not c.strip() for c in checkpoints):
+        raise ValueError(f"checkpoints: expected one or more names, got {checkpoints!r}")
+    if len(set(checkpoints)) != len(checkpoints):
+        raise ValueError(f"checkpoints: listed twice: {checkpoints!r}")
+
+
 @dataclass
 class PairedConfig:
     """Everything that decides a paired run's results (stored in ``paired_config.json``)."""
@@ -95,10 +103,7 @@ class PairedConfig:
     def __post_init__(self) -> None:
         if isinstance(self.subtasks, bool) or not isinstance(self.subtasks, int) or self.subtasks < 1:
             raise ValueError(f"subtasks: expected an integer >= 1, got {self.subtasks!r}")
-        if not self.checkpoints or any(not c.strip() for c in self.checkpoints):
-            raise ValueError(f"checkpoints: expected one or more names, got {self.checkpoints!r}")
-        if len(set(self.checkpoints)) != len(self.checkpoints):
-            raise ValueError(f"checkpoints: listed twice: {self.checkpoints!r}")
+        check_checkpoints(self.checkpoints)
         if self.steps is not None and self.steps < 1:
             raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
 
@@ -242,9 +247,10 @@ def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel
     return model, adapter
 
 
-def _branch_record(pair: PairedSubtask, rollout: Rollout) -> dict[str, Any]:
+def branch_record(pair_id: str, rollout: Rollout) -> dict[str, Any]:
+    """One branch's line of the timings file (wall times per round; kept out of the dataset)."""
     return {
-        "pair": pair.pair_id,
+        "pair": pair_id,
         "origin": rollout.origin,
         "seconds": round(rollout.seconds, 4),
         "policy_ms": [round(t.policy_s * 1000, 2) for t in rollout.timings],
@@ -353,7 +359,7 @@ def paired_run(
                     verdicts = station.verdicts(sub, pair.checkpoint, index, rollout_length(rollout))
                     if verdicts:
                         record_outcomes(root, verdicts)
-                rec = _branch_record(pair, rollout)
+                rec = branch_record(pair.pair_id, rollout)
                 records.append(rec)
                 with (root / TIMINGS_FILE).open("a") as fh:
                     fh.write(json.dumps(rec) + "\n")
