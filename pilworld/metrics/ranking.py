@@ -5,12 +5,22 @@ github.com/simpler-env/SimplerEnv (``pearson_correlation``, ``mean_maximum_rank_
 here with "sim" = the imagined branch's success rates and "real" = the real branch's, one value per
 task × checkpoint setting. Our code is written from those definitions, not copied.
 
-Where we differ from that file, on purpose:
+Where we differ from that file, on purpose (both differences are exact, not approximate):
 
-* **Pearson** is the exact coefficient (no ``+ 1e-8`` in the denominator). When either vector is
-  constant the coefficient is 0/0, undefined: we return ``None`` (SimplerEnv returns 1 when both
-  centred vectors are equal, which includes two constant vectors, and ≈0 when only one is constant).
+* **Pearson** is the exact coefficient. SimplerEnv's ``pearson_correlation`` divides by
+  ``D + 1e-8`` with ``D = √(Σ(x−x̄)² Σ(y−ȳ)²)``, so its value is ours times ``D / (D + 1e-8)``; the
+  difference ``|r| · 1e-8 / (D + 1e-8)`` is not bounded by a fixed figure but grows as the success
+  rates bunch together: for 15 settings spread over [0, 1] it stays near 1e-8, over a band 0.05 wide
+  it reaches 5e-6, and for two settings 0.01 apart 1e-4. The guard only stops a division by zero,
+  and it biases r towards 0 exactly where settings are hard to tell apart, so we keep the
+  coefficient exact and handle 0/0 explicitly instead.
+* **Constant vectors**: when either vector is constant, r is 0/0, undefined, and we return ``None``
+  (with a reason). SimplerEnv returns 1 when both centred vectors are equal element-wise (two constant
+  vectors included) and 0, or a value within float noise of 0, when only one is constant.
 * Every function returns ``None`` for fewer than two settings, where no ranking exists.
+
+:func:`pearson_simplerenv` reproduces SimplerEnv's formula exactly (tested against its published
+numbers) for comparing with figures computed that way; the metrics report only :func:`pearson`.
 
 MMRV is replicated exactly, tie rule included (see :func:`mmrv`).
 """
@@ -62,6 +72,16 @@ def pearson(x: Sequence[float], y: Sequence[float]) -> float | None:
     da, db = a - a.mean(), b - b.mean()
     r = float(np.sum(da * db) / math.sqrt(float(np.sum(da * da)) * float(np.sum(db * db))))
     return min(1.0, max(-1.0, r))  # rounding can overshoot ±1 by an ulp
+
+
+def pearson_simplerenv(x: Sequence[float], y: Sequence[float]) -> float:
+    """SimplerEnv's ``pearson_correlation``, written from its definition: 1 when the centred vectors are
+    equal element-wise, else Σ(x−x̄)(y−ȳ) / (√(Σ(x−x̄)² Σ(y−ȳ)²) + 1e-8). Always a number (no 0/0)."""
+    a, b = _vectors(x, y)
+    da, db = a - a.mean(), b - b.mean()
+    if np.all(da == db):
+        return 1.0
+    return float(np.sum(da * db) / (math.sqrt(float(np.sum(da * da)) * float(np.sum(db * db))) + 1e-8))
 
 
 def average_ranks(x: Sequence[float]) -> NDArray[np.float64]:

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from pilworld.metrics.ranking import average_ranks, mmrv, pearson, ranking_metrics, spearman
+from pilworld.metrics.ranking import average_ranks, mmrv, pearson, pearson_simplerenv, ranking_metrics, spearman
 
 
 def test_pearson_of_a_hand_computed_vector() -> None:
@@ -86,3 +86,39 @@ def test_simplerenv_published_numbers() -> None:
     sim = [0.787, 0.857, 0.710, 0.567, 0.027, 0.170]
     assert mmrv(sim, real) == pytest.approx(0.031333333333, abs=1e-9)
     assert pearson(sim, real) == pytest.approx(0.975434, abs=1e-6)
+
+
+def _denominator(x: list[float] | np.ndarray, y: list[float] | np.ndarray) -> float:
+    dx, dy = np.asarray(x) - np.mean(x), np.asarray(y) - np.mean(y)
+    return math.sqrt(float(np.sum(dx * dx)) * float(np.sum(dy * dy)))
+
+
+def test_pearson_simplerenv_reproduces_its_published_value_and_special_cases() -> None:
+    real = [0.907, 0.853, 0.920, 0.760, 0.133, 0.293]
+    sim = [0.787, 0.857, 0.710, 0.567, 0.027, 0.170]
+    assert pearson_simplerenv(sim, real) == pytest.approx(0.975434, abs=5e-7)
+    assert pearson_simplerenv([0.7, 0.7], [0.7, 0.7]) == 1.0  # equal centred vectors, though r is 0/0
+    assert pearson_simplerenv([0.5, 0.5, 0.5], [0.1, 0.2, 0.3]) == 0.0  # one constant vector
+    assert abs(pearson_simplerenv([0.1, 0.1, 0.1], [0.1, 0.2, 0.3])) < 1e-20  # within float noise of 0
+    assert pearson_simplerenv([0.2, 0.4, 0.9], [0.2, 0.4, 0.9]) == 1.0
+
+
+def test_the_difference_from_simplerenv_is_exactly_the_documented_factor() -> None:
+    # docs/metrics.md: SimplerEnv's r = ours · D / (D + 1e-8), so the gap is |r| · 1e-8 / (D + 1e-8).
+    rng = np.random.default_rng(0)
+    worst = {}
+    for spread in (1.0, 0.05):
+        gaps = []
+        for _ in range(500):
+            x, y = 0.5 + spread * (rng.random(15) - 0.5), 0.5 + spread * (rng.random(15) - 0.5)
+            ours = pearson(x.tolist(), y.tolist())
+            assert ours is not None
+            d = _denominator(x, y)
+            gap = ours - pearson_simplerenv(x.tolist(), y.tolist())
+            assert gap == pytest.approx(ours * 1e-8 / (d + 1e-8), rel=1e-6, abs=1e-15)
+            gaps.append(abs(gap))
+        worst[spread] = max(gaps)
+    assert worst[1.0] < 1e-7 < worst[0.05] < 1e-5  # the figures docs/metrics.md quotes
+    close = pearson([0.74, 0.76], [0.72, 0.73])
+    assert close == pytest.approx(1.0)
+    assert close - pearson_simplerenv([0.74, 0.76], [0.72, 0.73]) == pytest.approx(1e-4, rel=1e-3)
