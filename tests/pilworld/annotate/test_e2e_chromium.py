@@ -2,7 +2,8 @@
 
 Playwright drives the system's Chromium (``pilworld.report.chromium.find_chromium``; never a downloaded
 browser), under the app's own CSP (no ``bypass_csp``: the page must work with what the server sends, so
-waits poll with ``page.evaluate`` instead of ``wait_for_function``, which needs ``eval``). The run is a
+waits poll with ``page.evaluate`` against a real-time deadline, ``tests/pilworld/browser.py``, instead of
+``wait_for_function``, which needs ``eval``). The run is a
 4-episode paired run (2 checkpoints × 1 subtask × 2 branches), its automatic judge and metrics as
 ``pilworld demo`` makes them; the server runs in this process on a free loopback port.
 
@@ -15,7 +16,6 @@ import json
 import os
 import re
 import shutil
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,12 +24,13 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, ConsoleMessage, Error, Page, ViewportSize, sync_playwright
+from playwright.sync_api import Browser, ConsoleMessage, Error, Page, ViewportSize
 
 from pilworld.annotate.export import export_labels
 from pilworld.annotate.server import AnnotationServer
 from pilworld.data.reader import EpisodeStore
 from pilworld.report.chromium import find_chromium
+from tests.pilworld.browser import chromium, wait_for
 
 CHROMIUM = find_chromium()
 pytestmark = pytest.mark.skipif(
@@ -92,28 +93,11 @@ def app_server(run_dir: Path) -> Iterator[AnnotationServer]:
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Browser]:
-    assert CHROMIUM is not None
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu"])
-        try:
-            yield b
-        finally:
-            b.close()
+    with chromium() as b:
+        yield b
 
 
 # ---------------------------------------------------------------------------------------------- helpers
-
-
-def wait_for(page: Page, expression: str, what: str, timeout: float = 20.0) -> Any:
-    """Poll a JS expression until it is truthy (``wait_for_function`` needs ``eval``, which the CSP forbids)."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = page.evaluate(expression)
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what} ({expression})")
-        time.sleep(0.03)
 
 
 def wait_item(page: Page, position: int) -> dict[str, Any]:
