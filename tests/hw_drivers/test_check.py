@@ -81,3 +81,9 @@ def test_drivers_bench_reports_every_figure() -> None:
     assert r["servo_rate_hz"] == min(s["rate_hz"] for s in r["servo"].values())
     assert r["camera_fps"] == min(r["camera_fps_per_camera"].values())
     assert {g["side"] for g in r["grippers"].values()} == {"left", "right"}
+    # what the driver tests no longer time: set_target and read_latest, per device
+    assert set(r["gripper_set_target"]) == {"left", "right"}
+    assert set(r["camera_read_latest"]) == set(r["camera_fps_per_camera"])
+    for figures in (*r["gripper_set_target"].values(), *r["camera_read_latest"].values()):
+        assert 0 < figures["median_ms"] <= figures["p99_ms"], figures
+    assert r["gripper_set_target_p99_ms"] == max(v["p99_ms"] for v in r["gripper_set_target"].values())
