@@ -799,6 +799,8 @@ def _drivers(args: argparse.Namespace) -> int:
         f"drivers: servo {r['servo_rate_hz']} Hz (target {r['servo_rate_target_hz']}), p99 period "
         f"{r['servo_period_p99_ms']} ms; round trips: dynamixel {r['dynamixel_roundtrip_ms']} ms, "
         f"robotiq {r['robotiq_roundtrip_ms']} ms; cameras {r['camera_fps']} fps (served {r['camera_fps_served']})"
+        f"; calls (p99): gripper set_target {r['gripper_set_target_p99_ms']} ms, "
+        f"camera read_latest {r['camera_read_latest_p99_ms']} ms"
     )
     return emit(args, r)
 
