@@ -169,6 +169,19 @@ def replace_judge_outcomes(root: str | Path, judges: set[str], outcomes: Iterabl
     return sum(1 for o in old if o.judge_id in judges and (o.episode_index, o.judge_id) not in new)
 
 
+def drop_episode_outcomes(root: str | Path, episodes: set[int]) -> int:
+    """Drop every verdict on ``episodes`` (episodes being rewritten); returns the rows dropped."""
+    root = Path(root)
+    if not (root / layout.OUTCOMES).is_file():
+        return 0
+    with _locked(root):
+        old = read_outcomes(root)
+        keep = [o.to_row() for o in old if o.episode_index not in episodes]
+        if len(keep) != len(old):
+            write_parquet(root / layout.OUTCOMES, pa.Table.from_pylist(keep, schema=SCHEMA))
+    return len(old) - len(keep)
+
+
 def summarize(outcomes: list[Outcome]) -> dict[str, Any]:
     """Per judge: verdicts, success rate and mean t_h / T (the judge's HFR over its episodes)."""
     by_judge: dict[str, list[Outcome]] = {}
