@@ -90,8 +90,8 @@ def check_file(root: Path, rel: str, want: FileEntry, *, hash_files: bool) -> Fi
     return None
 
 
-def read_meta_manifest(root: Path) -> dict[str, FileEntry] | None:
-    path = root / META_MANIFEST
+def read_meta_manifest(root: Path, name: str = META_MANIFEST) -> dict[str, FileEntry] | None:
+    path = root / name
     if not path.is_file():
         return None
     return parse_manifest(path.read_text(encoding="utf-8") or None, source=str(path))

@@ -34,7 +34,7 @@ def read_info(root: Path) -> dict[str, Any]:
         raise DatasetError(f"{root}: not a LeRobot dataset (no {layout.INFO})")
     try:
         info: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as err:
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise DatasetError(f"{path}: not valid JSON: {err}") from None
     return info
 

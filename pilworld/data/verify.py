@@ -35,6 +35,7 @@ from pilworld.data.manifest import (
     parse_manifest,
     read_meta_manifest,
 )
+from pilworld.data.outcomes import OUTCOMES_MANIFEST
 from pilworld.data.reader import DatasetError, EpisodeStore, read_info
 
 # JSON sidecars a run folder may hold, beside its dataset(s)
@@ -82,7 +83,8 @@ class DatasetCheck:
 
 
 def is_dataset(root: Path) -> bool:
-    return (root / layout.INFO).is_file()
+    """A dataset folder, or what is left of one (its info.json may be the file that was lost)."""
+    return any((root / rel).exists() for rel in (layout.INFO, layout.PILWORLD, META_MANIFEST, layout.EPISODES_DIR))
 
 
 def _episode_files(store: EpisodeStore, row: dict[str, Any]) -> list[tuple[str, str]]:
@@ -115,11 +117,21 @@ def check_dataset(
     :class:`~pilworld.data.reader.DatasetError` only when ``root`` is not a dataset at all.
     """
     root = Path(root)
-    info = read_info(root)  # raises DatasetError: not a dataset
+    if not is_dataset(root):
+        raise DatasetError(f"{root}: not a dataset (no {layout.INFO})")
     check = DatasetCheck(root)
 
     def problem(path: str, kind: str, detail: str, episode: int | None = None) -> None:
         check.problems.append(Problem(label, path, kind, detail, episode))
+
+    if not (root / layout.INFO).is_file():
+        problem(layout.INFO, "missing", "missing")
+        return check
+    try:
+        info = read_info(root)
+    except DatasetError as err:
+        problem(layout.INFO, "unreadable", str(err).split(": ", 1)[-1])
+        return check
 
     # the dataset's own files first: if the episodes tables are gone, so are the episodes' manifests
     try:
@@ -128,6 +140,16 @@ def check_dataset(
         problem(META_MANIFEST, "unreadable", str(err).split(": ", 1)[-1])
         meta = None
     for rel, want in (meta or {}).items():
+        check.files += 1
+        bad = check_file(root, rel, want, hash_files=hash_files)
+        if bad is not None:
+            problem(rel, bad.kind, bad.detail)
+    try:  # the outcomes table keeps its own manifest (judges rewrite it, not the episode writer)
+        outcomes = read_meta_manifest(root, OUTCOMES_MANIFEST)
+    except ValueError as err:
+        problem(OUTCOMES_MANIFEST, "unreadable", str(err).split(": ", 1)[-1])
+        outcomes = None
+    for rel, want in (outcomes or {}).items():
         check.files += 1
         bad = check_file(root, rel, want, hash_files=hash_files)
         if bad is not None:
@@ -157,19 +179,19 @@ def check_dataset(
             check.no_manifest += 1
         for rel, kind in files:
             check.files += 1
-            want: FileEntry | None = (manifest or {}).get(rel)
-            if want is not None:
-                bad = check_file(root, rel, want, hash_files=hash_files)
+            entry: FileEntry | None = (manifest or {}).get(rel)
+            if entry is not None:
+                bad = check_file(root, rel, entry, hash_files=hash_files)
                 if bad is not None:
                     problem(rel, bad.kind, bad.detail, index)
                     continue
             elif not (root / rel).is_file():
                 problem(rel, "missing", "missing", index)
                 continue
-            if want is None or hash_files:  # no manifest to trust, or a full check: the structure too
-                why = _structure(root / rel, kind, None)
-                if why is not None:
-                    problem(rel, "truncated" if "truncated" in why else "unreadable", why, index)
+            if entry is None or hash_files:  # no manifest to trust, or a full check: the structure too
+                broken = _structure(root / rel, kind, None)
+                if broken is not None:
+                    problem(rel, "truncated" if "truncated" in broken else "unreadable", broken, index)
         if on_episode is not None:
             on_episode(index + 1, len(rows))
     return check
@@ -218,7 +240,7 @@ def _sidecar_problems(root: Path, datasets: dict[str, DatasetCheck]) -> list[Pro
                 out.append(Problem(".", rel, "unreadable", f"is not valid JSON ({err})"))
     for label, check in datasets.items():
         path = check.root / layout.OUTCOMES
-        if not path.is_file():
+        if not path.is_file() or any(p.path == layout.OUTCOMES for p in check.problems):
             continue
         why = parquet_problem(path)
         if why is not None:
