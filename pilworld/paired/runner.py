@@ -19,9 +19,10 @@ between runs).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -263,6 +264,18 @@ def branch_record(pair_id: str, rollout: Rollout) -> dict[str, Any]:
 RESUME_HINT = "branches already stored stay; rerun the same command to resume"
 
 
+@contextlib.contextmanager
+def _closing(policies: Iterable[Policy]) -> Iterator[None]:
+    """Close remote policies' connections when the run ends, however it ends."""
+    try:
+        yield
+    finally:
+        for policy in policies:
+            close = getattr(policy, "close", None)
+            if callable(close):
+                close()
+
+
 def connect_policy(checkpoint: str, rig: RigConfig, spec: ChunkSpec) -> Policy:
     """``make_policy``, with a policy server that cannot be reached named by its checkpoint."""
     try:
@@ -318,6 +331,7 @@ def paired_run(
         total=len(plan), initial=len(plan) - len(todo), desc="paired subtasks", unit="pair", disable=not progress
     )
     with (
+        _closing(policies.values()),
         station_ as station,
         EpisodeWriter(root, store_spec) as writer,
         StartsWriter(

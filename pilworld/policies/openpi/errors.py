@@ -17,7 +17,7 @@ class PolicyServerError(PolicyError):
 
     def __init__(self, policy: str, remote_traceback: str, close_code: int | None = None) -> None:
         last = next((line for line in reversed(remote_traceback.strip().splitlines()) if line.strip()), "")
-        super().__init__(policy, f"the server failed: {last or 'no message'} (remote traceback in .remote_traceback)")
+        super().__init__(policy, f"the server failed: {last or 'no message'}")
         self.remote_traceback = remote_traceback
         self.close_code = close_code
 
