@@ -65,13 +65,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = list(argv) if argv is not None else sys.argv[1:]  # for commands that re-launch themselves
+    from hw_drivers.errors import RobotError
     from pilworld.paired.operator import OperatorUnavailableError
     from pilworld.policies.base import PolicyError
 
     debug = bool(args.debug) or os.environ.get("PILWORLD_DEBUG", "").strip() not in ("", "0")
     try:
         return int(args.handler(args))
-    except (PolicyError, OperatorUnavailableError) as err:  # before ValueError/OSError: a run failure, exit 1
+    # Run failures, exit 1 — a policy, a missing operator, or the rig (a stale observation, a protective stop:
+    # the drivers have already stopped the arms). Caught before ValueError/OSError, which are bad input.
+    except (PolicyError, OperatorUnavailableError, RobotError) as err:
         if debug:
             raise
         print(f"pilworld: error: {_one_line(err)}", file=sys.stderr)
