@@ -39,6 +39,7 @@ from pilworld.envs import RobotEnv
 from pilworld.imagine.branch import branch_episode, run_imagined
 from pilworld.paired.operator import Operator
 from pilworld.paired.real_source import RealBranchSource
+from pilworld.paired.revalidate import damaged_branches, take_out
 from pilworld.paired.stations import open_station
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
@@ -285,6 +286,8 @@ def paired_run(
         spec_t = make_task(t)
         plan += plan_subtasks(t, cfg.subtasks, cfg.seed, cfg.checkpoints, spec_t.num_subtasks, spec_t.instruction)
     done = stored_branches(root)
+    redo = damaged_branches(root)  # stored branches whose files were lost: run again into their old slots
+    take_out(done, redo)
     todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS)]
     need_real = [p for p in todo if "real" not in done.get(p.pair_id, set())]
     reference = RealBranchSource(cfg.real_from, cfg) if cfg.real_from and need_real else None
@@ -333,7 +336,7 @@ def paired_run(
                 if origin in have:
                     continue
                 if origin == "real" and reference is not None:
-                    reference.copy(pair.pair_id, writer, root)
+                    reference.copy(pair.pair_id, writer, root, index=redo.get((pair.pair_id, origin)))
                     if on_branch is not None:
                         on_branch(pair, origin)
                     continue
@@ -354,7 +357,8 @@ def paired_run(
                     env = RobotEnv(robot, cfg.spec, pace=station.pace)  # a simulator may run ahead of real time
                     rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
                 ep = branch_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra)
-                index = writer.append(ep)
+                slot = redo.get((pair.pair_id, origin))
+                index = writer.append(ep) if slot is None else writer.replace(slot, ep)  # replace drops old verdicts
                 if origin == "real":
                     verdicts = station.verdicts(sub, pair.checkpoint, index, rollout_length(rollout))
                     if verdicts:
