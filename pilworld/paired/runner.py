@@ -39,12 +39,12 @@ from pilworld.envs import RobotEnv
 from pilworld.imagine.branch import branch_episode, run_imagined
 from pilworld.paired.operator import Operator
 from pilworld.paired.real_source import RealBranchSource
-from pilworld.paired.revalidate import damaged_branches, take_out
+from pilworld.paired.revalidate import damaged_branches, damaged_starts, take_out
 from pilworld.paired.stations import open_station
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
 from pilworld.starts.sources import PAIRED_STARTS
-from pilworld.starts.store import StartsWriter
+from pilworld.starts.store import StartsWriter, start_id
 from pilworld.types import ChunkSpec, Subtask
 from pilworld.world_model.base import WorldModel
 
@@ -288,7 +288,9 @@ def paired_run(
     done = stored_branches(root)
     redo = damaged_branches(root)  # stored branches whose files were lost: run again into their old slots
     take_out(done, redo)
-    todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS)]
+    restart = damaged_starts(root / PAIRED_STARTS)  # likewise its stored starts: recorded again
+    scenes = {sid for sid, _ in restart}
+    todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS) or start_id(p.subtask) in scenes]
     need_real = [p for p in todo if "real" not in done.get(p.pair_id, set())]
     reference = RealBranchSource(cfg.real_from, cfg) if cfg.real_from and need_real else None
     missing = [p.pair_id for p in need_real if reference is not None and not reference.has(p.pair_id)]
@@ -316,6 +318,7 @@ def paired_run(
         ) as starts,
     ):
         robot = station.robot
+        starts.redo(restart)
         for pair in todo:
             have = done.get(pair.pair_id, set())
             sub = pair.subtask

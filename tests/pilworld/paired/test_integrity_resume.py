@@ -94,6 +94,24 @@ def test_a_resume_redoes_a_damaged_branch(
     assert "redoing" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("rel", ["starts/data/chunk-000/file-000.parquet", f"starts/{VIDEO}/chunk-000/file-000.mp4"])
+def test_a_resume_records_a_damaged_start_again(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], rel: str
+) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    (run / rel).unlink()
+    capsys.readouterr()
+    summary = paired_run(_cfg(run), progress=False)
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.endswith("— redoing")]
+    short = rel.removeprefix("starts/")
+    assert lines == [f"starts episode 0 (sort_cubes/seed0/subtask0): {short} missing — redoing"], lines
+    assert summary["branches_run"] == 0  # both branches were whole: only the start is recorded again
+    assert main(["data", "verify", str(run), "--no-progress"]) == 0, capsys.readouterr().out
+    assert dataset_digest(run / "starts") == dataset_digest(finished_run / "starts")
+    assert dataset_digest(run) == dataset_digest(finished_run)
+
+
 def test_a_damaged_episodes_table_is_refused_by_name(finished_run: Path, tmp_path: Path) -> None:
     run = tmp_path / "run"
     shutil.copytree(finished_run, run)
