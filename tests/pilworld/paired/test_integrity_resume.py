@@ -119,3 +119,19 @@ def test_a_damaged_episodes_table_is_refused_by_name(finished_run: Path, tmp_pat
     table.write_bytes(table.read_bytes()[:100])
     with pytest.raises(DatasetError, match=r"meta/episodes/chunk-000/file-000\.parquet"):
         paired_run(_cfg(run), progress=False)
+
+
+def test_the_cli_resume_redoes_a_damaged_branch(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    index, rel = _file_of(run, "real", "data")
+    (run / rel).unlink()
+    capsys.readouterr()
+    args = ["paired", "run", "--rig", SIM, "--task", "sort_cubes", "--checkpoints", "scripted_step_30k"]
+    assert main([*args, "--subtasks", "1", "--rounds", "1", "--out", str(run), "--json"]) == 0
+    err = capsys.readouterr().err
+    assert f"episode {index} (sort_cubes/scripted_step_30k/seed0/subtask0, real): {rel} missing — redoing" in err
+    assert main(["data", "verify", str(run), "--no-progress"]) == 0
+    assert dataset_digest(run) == dataset_digest(finished_run)
