@@ -27,6 +27,7 @@ from tqdm import tqdm
 from pilworld.data.atomic import write_json
 from pilworld.data.episode import Episode
 from pilworld.data.writer import EpisodeWriter
+from pilworld.paired.revalidate import damaged_branches, take_out
 from pilworld.paired.runner import (
     PairedConfig,
     PairedSubtask,
@@ -339,6 +340,8 @@ def imagine_run(
     _check_config(root, cfg, write=False)
     jobs = plan_jobs(cfg, source)
     done = stored_branches(root)
+    redo = damaged_branches(root)  # stored branches whose files were lost: run again into their old slots
+    take_out(done, redo)
     todo = [j for j in jobs if "imagined" not in done.get(j.pair_id, set())]
     _check_config(root, cfg, write=True)
     cfg_json = json.loads(json.dumps(cfg.to_json()))
@@ -353,7 +356,11 @@ def imagine_run(
     if todo:
         with EpisodeWriter(root, dataset_spec(cfg.rig, cfg.video_mode, spec)) as writer:
             for result in run(todo, cfg_json, robot_json):
-                writer.append(result.episode)
+                slot = redo.get((str(result.episode.extra["pair"]), "imagined"))
+                if slot is None:
+                    writer.append(result.episode)
+                else:
+                    writer.replace(slot, result.episode)
                 seconds.append(result.seconds)
                 with (root / TIMINGS_FILE).open("a") as fh:
                     fh.write(json.dumps(result.record) + "\n")

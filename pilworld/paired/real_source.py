@@ -55,8 +55,10 @@ class RealBranchSource:
     def has(self, pair_id: str) -> bool:
         return pair_id in self.index
 
-    def copy(self, pair_id: str, writer: EpisodeWriter, out_root: Path) -> tuple[int, int]:
-        """Append the pair's real episode to ``writer`` with its verdicts; returns (new index, frames)."""
+    def copy(self, pair_id: str, writer: EpisodeWriter, out_root: Path, *, index: int | None = None) -> tuple[int, int]:
+        """Append the pair's real episode to ``writer`` with its verdicts; returns (new index, frames).
+
+        With ``index`` it rewrites that stored episode instead (a damaged branch a resume redoes)."""
         if pair_id not in self.index:
             raise KeyError(f"real_from: {self.root} has no real branch of pair {pair_id} (run it there first)")
         src = self.index[pair_id]
@@ -67,7 +69,11 @@ class RealBranchSource:
         if self.store.spec == writer.spec:
             own = {v: self.store.own_video_file(src, v) for v in writer.spec.views}
             files = {v: p for v, p in own.items() if p is not None} or None
-        index = writer.append(dataclasses.replace(ep, extra=extra), video_files=files)
+        copied = dataclasses.replace(ep, extra=extra)
+        if index is None:
+            index = writer.append(copied, video_files=files)
+        else:
+            index = writer.replace(index, copied, video_files=files)
         verdicts = [dataclasses.replace(o, episode_index=index) for o in self.outcomes.get(src, [])]
         if verdicts:
             record_outcomes(out_root, verdicts)

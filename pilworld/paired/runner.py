@@ -41,12 +41,13 @@ from pilworld.imagine.branch import branch_episode, run_imagined
 from pilworld.paired.operator import Operator
 from pilworld.paired.policy_metadata import honour_reset_poses, store_metadata
 from pilworld.paired.real_source import RealBranchSource
+from pilworld.paired.revalidate import damaged_branches, damaged_starts, take_out
 from pilworld.paired.stations import open_station
 from pilworld.policies.base import Policy, PolicyError
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
 from pilworld.starts.sources import PAIRED_STARTS
-from pilworld.starts.store import StartsWriter
+from pilworld.starts.store import StartsWriter, start_id
 from pilworld.types import ChunkSpec, Subtask
 from pilworld.world_model.base import WorldModel
 
@@ -311,7 +312,11 @@ def paired_run(
         spec_t = make_task(t)
         plan += plan_subtasks(t, cfg.subtasks, cfg.seed, cfg.checkpoints, spec_t.num_subtasks, spec_t.instruction)
     done = stored_branches(root)
-    todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS)]
+    redo = damaged_branches(root)  # stored branches whose files were lost: run again into their old slots
+    take_out(done, redo)
+    restart = damaged_starts(root / PAIRED_STARTS)  # likewise its stored starts: recorded again
+    scenes = {sid for sid, _ in restart}
+    todo = [p for p in plan if done.get(p.pair_id, set()) != set(ORIGINS) or start_id(p.subtask) in scenes]
     need_real = [p for p in todo if "real" not in done.get(p.pair_id, set())]
     reference = RealBranchSource(cfg.real_from, cfg) if cfg.real_from and need_real else None
     missing = [p.pair_id for p in need_real if reference is not None and not reference.has(p.pair_id)]
@@ -344,6 +349,7 @@ def paired_run(
     ):
         robot = station.robot
         honour_reset_poses(station, policies)
+        starts.redo(restart)
         for pair in todo:
             have = done.get(pair.pair_id, set())
             sub = pair.subtask
@@ -364,7 +370,7 @@ def paired_run(
                 if origin in have:
                     continue
                 if origin == "real" and reference is not None:
-                    reference.copy(pair.pair_id, writer, root)
+                    reference.copy(pair.pair_id, writer, root, index=redo.get((pair.pair_id, origin)))
                     if on_branch is not None:
                         on_branch(pair, origin)
                     continue
@@ -389,7 +395,8 @@ def paired_run(
                     where = f"{sub.task} subtask {sub.index}, layout seed {sub.seed}, {origin} branch"
                     raise err.in_context(pair.checkpoint, where, RESUME_HINT) from err
                 ep = branch_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra)
-                index = writer.append(ep)
+                slot = redo.get((pair.pair_id, origin))
+                index = writer.append(ep) if slot is None else writer.replace(slot, ep)  # replace drops old verdicts
                 if origin == "real":
                     verdicts = station.verdicts(sub, pair.checkpoint, index, rollout_length(rollout))
                     if verdicts:

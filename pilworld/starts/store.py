@@ -18,6 +18,7 @@ for every checkpoint, as on the simulated rig).
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -172,6 +173,7 @@ class StartsWriter:
         self._spec = spec
         self._writer: EpisodeWriter | None = None
         self._have: set[tuple[str, str]] | None = None
+        self._redo: dict[tuple[str, str], int] = {}  # damaged stored starts: rewritten in place by add()
 
     def stored(self) -> set[tuple[str, str]]:
         """(start id, checkpoint) of every start in the folder."""
@@ -184,6 +186,14 @@ class StartsWriter:
                         self._have.add((str(extra["start_id"]), str(extra.get("start_checkpoint", ""))))
         return self._have
 
+    def redo(self, slots: Mapping[tuple[str, str], int]) -> None:
+        """Treat these stored starts ((start id, checkpoint) → episode index; damaged files) as not stored:
+        ``add`` then rewrites each into its old episode slot."""
+        have = self.stored()
+        for key, index in slots.items():
+            have.discard(key)
+            self._redo[key] = index
+
     def add(self, start: Start, *, checkpoint: str = "") -> bool:
         """Store ``start`` unless it is there already; True when it was written."""
         key = (start_id(start.subtask), checkpoint)
@@ -193,7 +203,12 @@ class StartsWriter:
             self.root.mkdir(parents=True, exist_ok=True)
             write_json(self.root / META_FILE, self.meta)
             self._writer = EpisodeWriter(self.root, self._spec)
-        self._writer.append(start_episode(start, checkpoint=checkpoint))
+        episode = start_episode(start, checkpoint=checkpoint)
+        slot = self._redo.pop(key, None)
+        if slot is None:
+            self._writer.append(episode)
+        else:
+            self._writer.replace(slot, episode)
         self.stored().add(key)
         return True
 

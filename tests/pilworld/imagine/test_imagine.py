@@ -110,6 +110,24 @@ def test_worker_processes_write_the_same_run(paired: Path, imagined: Path) -> No
     assert _videos(out) == _videos(imagined)
 
 
+def test_a_resume_redoes_a_damaged_branch(paired: Path, imagined: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = paired.parent / "damaged"
+    shutil.copytree(imagined, out)
+    store = EpisodeStore(out)
+    row = store.episodes[1]
+    rel = store.data_path.format(chunk_index=int(row["data/chunk_index"]), file_index=int(row["data/file_index"]))
+    (out / rel).unlink()
+    capsys.readouterr()
+    summary = imagine_run(ImagineConfig(starts=str(paired), checkpoints=CKPTS, out=str(out)), progress=False)
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.endswith("— redoing")]
+    pair = json.loads(str(row["extra"]))["pair"]
+    assert lines == [f"episode 1 ({pair}, imagined): {rel} missing — redoing"], lines
+    assert summary["branches_run"] == 1
+    assert _digest(out) == _digest(imagined)
+    assert _videos(out) == _videos(imagined)
+    assert main(["data", "verify", str(out), "--no-progress"]) == 0
+
+
 def _cmd(starts: Path, out: Path, *extra: str) -> list[str]:
     return [
         sys.executable, "-m", "pilworld.cli.main", "imagine", "--starts", str(starts), "--checkpoints", ",".join(CKPTS),

@@ -127,6 +127,24 @@ def test_the_real_branch_is_not_rerun(source: Path, copied: tuple[Path, dict[str
     assert EpisodeStore(out).num_episodes == 2
 
 
+def test_a_damaged_copied_real_branch_is_copied_again(
+    source: Path, copied: tuple[Path, dict[str, Any]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A resume with real_from redoes a damaged real branch by copying it again, verdicts included."""
+    out, _ = copied
+    run = tmp_path / "B"
+    shutil.copytree(out, run)
+    mp4 = EpisodeStore(run).video_file(1, "cam_high")[0]
+    mp4.unlink()
+    capsys.readouterr()
+    paired_run(_cfg(run, real_from=str(source)), progress=False)
+    err = capsys.readouterr().err
+    assert f"episode 1 (sort_cubes/{LATE}/seed0/subtask0, real): " in err and "missing — redoing" in err, err
+    assert mp4.read_bytes() == EpisodeStore(out).video_file(1, "cam_high")[0].read_bytes()
+    want = sorted((o.episode_index, *_verdict_key(o)) for o in read_outcomes(out))
+    assert sorted((o.episode_index, *_verdict_key(o)) for o in read_outcomes(run)) == want
+
+
 def test_real_from_without_a_paired_run_is_refused(tmp_path: Path) -> None:
     empty = tmp_path / "empty"
     empty.mkdir()
