@@ -14,10 +14,15 @@ Faults (``faults.inject(kind)``), checked before every part:
 * ``disconnect`` — open stream connections are closed and new ones are closed on accept, while active;
 * ``corrupt``    — a part carries a broken JPEG (header kept, body scrambled, length right), at ``rate``;
 * ``drop``       — a frame is skipped (nothing sent in its period), at ``rate``.
+
+:meth:`counts` says how many parts were decided, sent, withheld and corrupted, so tests assert counts
+(every part sent is received, a drop rate withholds its share) instead of timing the stream; the
+streaming rate itself is a ``pilworld bench drivers`` figure.
 """
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import html
 import socket
@@ -170,6 +175,7 @@ class MJPEGCameraServer:
         self._clients: set[socket.socket] = set()
         self._lock = threading.Lock()
         self._watch: threading.Thread | None = None
+        self._counts: collections.Counter[str] = collections.Counter()
 
     @property
     def port(self) -> int:
@@ -232,13 +238,28 @@ class MJPEGCameraServer:
 
     # -- internals shared with the handlers
 
+    def counts(self) -> dict[str, int]:
+        """Parts decided so far over every stream and snapshot: ``periods`` (parts due), ``sent``
+        (handed to a connection, corrupt ones included), ``withheld`` (stall/drop) and ``corrupt``."""
+        with self._lock:
+            return {k: self._counts[k] for k in ("periods", "sent", "withheld", "corrupt")}
+
+    def _count(self, *keys: str) -> None:
+        with self._lock:
+            self._counts.update(keys)
+
     def _next_part(self, camera: str) -> bytes | None:
         """The JPEG to send for this period, or None when a fault says send nothing."""
         if self.faults.active("stall") or self.faults.active("drop"):
+            self._count("periods", "withheld")
             return None
         image, _ = self.backend.frame(camera)
         jpeg = encode_jpeg(image, self.quality)
-        return corrupt_jpeg(jpeg) if self.faults.active("corrupt") else jpeg
+        if self.faults.active("corrupt"):
+            self._count("periods", "sent", "corrupt")
+            return corrupt_jpeg(jpeg)
+        self._count("periods", "sent")
+        return jpeg
 
     def _track(self, conn: socket.socket, *, add: bool) -> None:
         with self._lock:

@@ -8,7 +8,10 @@ grippers' I/O threads and the cameras' capture threads run as they would on hard
 * ``servo_rate_hz`` (each arm and the minimum) and ``servo_period_p99_ms`` — the 500 Hz servoJ loop;
 * ``dynamixel_roundtrip_ms`` / ``robotiq_roundtrip_ms`` — median of a polling read on the bus (p99 too);
 * ``camera_fps`` — frames received per second per camera (the fake serves ``hardware.fake.camera_fps``);
-* ``control_period_p99_ms`` — how evenly the control loop itself kept its period.
+* ``control_period_p99_ms`` — how evenly the control loop itself kept its period;
+* ``gripper_set_target_p99_ms`` / ``camera_read_latest_p99_ms`` — what the caller of a driver pays: a
+  gripper's ``set_target`` and a camera's ``read_latest`` are meant never to wait on I/O (their tests check
+  that as an ordering against a stalled bus; the times are measured here), each over ``CALLS`` calls.
 
 The fakes do not model wire time (a real RS-485 round trip adds ~1–2 ms plus the adapter's latency
 timer), so the gripper figures are the drivers' own overhead.
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,8 +29,22 @@ import numpy as np
 from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
+from pilworld.types import ARM_LAYOUT
 
 FAKE_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "fake_dual_ur5e.yaml"
+CALLS = 200  # calls timed per gripper set_target / camera read_latest
+
+
+def _call_ms(call: Callable[[], object]) -> dict[str, float]:
+    """Median and p99 of CALLS calls of ``call``, in ms (1 ms apart, as a control loop would call it)."""
+    times = []
+    for _ in range(CALLS):
+        t0 = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - t0)
+        time.sleep(0.001)
+    ms = np.asarray(times) * 1000
+    return {"median_ms": round(float(np.median(ms)), 4), "p99_ms": round(float(np.percentile(ms, 99)), 4)}
 
 
 def _finite(x: float) -> float | None:
@@ -80,6 +98,15 @@ def run_drivers_bench(
                 driver = getattr(rig.hardware.grippers, side).driver
                 grippers[driver] = {"side": side, "median_ms": _finite(rt.median_ms), "p99_ms": _finite(rt.p99_ms)}
             fps = {name: round(cam.fps_measured(), 2) for name, cam in robot.cameras.items()}  # type: ignore[attr-defined]
+            held = robot.observe().state
+            set_target = {
+                side: _call_ms(lambda g=g, o=float(held[ARM_LAYOUT[side][1]]): g.set_target(o))  # type: ignore[misc]
+                for side, g in robot.grippers.items()
+            }
+            read_latest = {
+                name: _call_ms(lambda c=cam: c.read_latest(1.0))  # type: ignore[misc]
+                for name, cam in robot.cameras.items()
+            }
     p = np.asarray(periods[1:]) * 1000
     return {
         "rig": str(rig_path),
@@ -107,5 +134,9 @@ def run_drivers_bench(
         "control_rate_hz": rig.control_rate_hz,
         "control_period_p50_ms": round(float(np.percentile(p, 50)), 3) if p.size else None,
         "control_period_p99_ms": round(float(np.percentile(p, 99)), 3) if p.size else None,
+        "gripper_set_target_p99_ms": max(v["p99_ms"] for v in set_target.values()) if set_target else None,
+        "gripper_set_target": set_target,
+        "camera_read_latest_p99_ms": max(v["p99_ms"] for v in read_latest.values()) if read_latest else None,
+        "camera_read_latest": read_latest,
         "machine": machine_info(),
     }

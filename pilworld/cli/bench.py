@@ -11,12 +11,58 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.bench.reprojection import add_arguments as reprojection_arguments
+from pilworld.cli.bench_print import Column, emit, num, pct, table
 from pilworld.cli.control_video import parse_size
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
 from pilworld.types import ChunkSpec
 
 DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
+
+
+def _signed(digits: int) -> Any:
+    return lambda x: f"{float(x):+.{digits}f}"
+
+
+# The tables the benches print, one column list each (pilworld/cli/bench_print.py aligns them).
+PAIRED_COLUMNS = (
+    Column("variant", 15, "variant", align="<"),
+    Column("SR_real", 8, "sr_real", pct),
+    Column("SR_imag", 8, "sr_imag", pct),
+    Column("|ΔSR|", 7, "abs_delta_sr", pct),
+    Column("HFR", 6, "hfr", num),
+    Column("Pearson", 8, "pearson", num),
+    Column("MMRV", 6, "mmrv", num),
+    Column("head PSNR", 9, lambda row: row["head"].get("psnr_pooled"), num, align="<", sep="  "),
+)
+SPEED_ACCURACY_COLUMNS = (
+    Column("point", 16, "id", align="<"),
+    Column("latency ms", 11, "chunk_latency_ms", lambda x: num(x, 1)),
+    Column("x realtime", 11, "realtime_factor", lambda x: num(x, 1)),
+    Column("head PSNR", 10, "psnr_head", num),
+    Column("SSIM", 7, "ssim_head", num),
+    Column("|ΔSR|", 7, "abs_delta_sr", pct),
+    Column("front", 5, "front", align="<", sep="  "),
+)
+WORLD_MODEL_COLUMNS = (
+    Column("view", 18, "view", align="<"),
+    Column("psnr", 8, "psnr", num),
+    Column("frozen", 8, "frozen", num),
+    Column("gain", 8, "gain", _signed(2)),
+    Column("pooled gain", 13, "pooled", _signed(2)),
+    Column("no-hist", 9, "no_history", num),  # only when the no-history ablation ran
+)
+PPI_COLUMNS = (
+    Column("method", 7, "method", align="<"),
+    Column("predictor", 14, "predictor", align="<", sep=" "),
+    Column("n", 3, "n", sep=" "),
+    Column("N", 4, "N", sep=" "),
+    Column("cov PPI", 8, "coverage_ppi", lambda x: num(x, 3), sep=" "),
+    Column("cov cl.", 8, "coverage_classical", lambda x: num(x, 3), sep=" "),
+    Column("ratio", 6, "width_ratio", lambda x: num(x, 3), sep=" "),
+    Column("formula", 8, "width_ratio_formula", lambda x: num(x, 3), sep=" "),
+    Column("ESS gain", 9, "ess_gain_measured", num, sep=" "),
+)
 
 
 def register(sub: Any) -> None:
@@ -299,9 +345,7 @@ def _control_video(args: argparse.Namespace) -> int:
         f"control-video: {result['frames_per_s']:.0f} frames/s ({result['image_size'][0]}x{result['image_size'][1]}, "
         f"K={result['K']}), {result['ms_per_chunk_single_p50']:.3f} ms per single chunk"
     )
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _gamma_plus(args: argparse.Namespace, style: Style, spec: ChunkSpec) -> int:
@@ -333,9 +377,7 @@ def _gamma_plus(args: argparse.Namespace, style: Style, spec: ChunkSpec) -> int:
             f"(ratio {result['ratio_to_world_model']:.2f})"
         )
     print(line)
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _robot_render(args: argparse.Namespace) -> int:
@@ -351,9 +393,7 @@ def _robot_render(args: argparse.Namespace) -> int:
     )
     for view, r in result["views"].items():
         print(f"{view:16s} mean IoU {r['mean_iou']:.4f}  worst {r['worst_iou']:.4f} (config {r['worst_config']})")
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _reprojection(args: argparse.Namespace) -> int:
@@ -373,9 +413,7 @@ def _data(args: argparse.Namespace) -> int:
         f"frames/s, read {result['read_frames_per_s']:.0f} frames/s, clips {result['clips_per_s']:.0f}/s "
         f"({result['clips_per_s_cold']:.0f}/s while decoding)"
     )
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _names(value: str, all_names: list[str], what: str) -> list[str]:
@@ -410,9 +448,7 @@ def _sim(args: argparse.Namespace) -> int:
     )
     for task, rates in result.get("success_rates", {}).items():
         print(f"  {task}: " + ", ".join(f"{c} {r:.2f}" for c, r in rates.items()))
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _calibration(args: argparse.Namespace) -> int:
@@ -469,9 +505,7 @@ def _calibration(args: argparse.Namespace) -> int:
             ]
             print(f"    {method:<18} " + "  ".join(cells))
     print(f"chart: {r['chart']}")
-    if args.json:
-        print(json.dumps(r))
-    return 0
+    return emit(args, r)
 
 
 def _chunk_latency(args: argparse.Namespace) -> int:
@@ -482,9 +516,7 @@ def _chunk_latency(args: argparse.Namespace) -> int:
     result = run_chunk_latency(parse_models(text), rig=args.rig, task=args.task, repeats=args.repeats)
     for name, m in result["models"].items():
         print(f"{name:>12}: median {m['median_ms']:.1f} ms, p90 {m['p90_ms']:.1f} ms, ×{m['ratio_to_first']:.2f}")
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _world_model_presets(args: argparse.Namespace) -> int:
@@ -498,9 +530,7 @@ def _world_model_presets(args: argparse.Namespace) -> int:
             f"{name:>6}: {r['params'] / 1e6:6.2f} M params ({r['float32_mb']} MB float32), {w}x{h}, "
             f"{r['steps']} steps: {r['chunk_latency_ms']:.1f} ms per chunk, realtime x{r['realtime_factor']}"
         )
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _world_model(args: argparse.Namespace) -> int:
@@ -550,14 +580,19 @@ def _world_model(args: argparse.Namespace) -> int:
         f"SSIM {result['ssim']:.3f} (frozen {result['ssim_frozen']:.3f})"
     )
     nh = result["no_history"]
-    header = f"  {'view':<18}{'psnr':>8}{'frozen':>8}{'gain':>8}{'pooled gain':>13}" + (f"{'no-hist':>9}" if nh else "")
-    print(header)
-    for view, fig in result["per_view"].items():
-        row = (
-            f"  {view:<18}{fig['psnr']:>8.2f}{result['per_view_frozen'][view]['psnr']:>8.2f}"
-            f"{result['gain_over_frozen_db'][view]:>+8.2f}{result['gain_over_frozen_pooled_db'][view]:>+13.2f}"
-        )
-        print(row + (f"{nh['per_view'][view]['psnr']:>9.2f}" if nh else ""))
+    rows = [
+        {
+            "view": view,
+            "psnr": fig["psnr"],
+            "frozen": result["per_view_frozen"][view]["psnr"],
+            "gain": result["gain_over_frozen_db"][view],
+            "pooled": result["gain_over_frozen_pooled_db"][view],
+            "no_history": nh["per_view"][view]["psnr"] if nh else None,
+        }
+        for view, fig in result["per_view"].items()
+    ]
+    for line in table(WORLD_MODEL_COLUMNS if nh else WORLD_MODEL_COLUMNS[:-1], rows):
+        print(line)
     exact = {v: f["exact"] for v, f in result["per_view_frozen"].items() if f["exact"] > 0}
     if exact:  # these frames score the 100 dB cap and lift psnr_frozen
         shares = ", ".join(f"{v} {x:.0%}" for v, x in exact.items())
@@ -571,9 +606,7 @@ def _world_model(args: argparse.Namespace) -> int:
         f"steps {result['steps'] if result['steps'] is not None else 'default'}, {result['torch_threads']} threads), "
         f"realtime factor {result['realtime_factor']:.2f}"
     )
-    if args.json:
-        print(json.dumps(result))
-    return 0
+    return emit(args, result)
 
 
 def _wm_ladder(args: argparse.Namespace) -> int:
@@ -607,9 +640,7 @@ def _wm_ladder(args: argparse.Namespace) -> int:
     r = run_wm_ladder(cfg, progress=not args.no_progress)
     for line in summary_lines(r):
         print(line)
-    if args.json:
-        print(json.dumps(r))
-    return 0
+    return emit(args, r)
 
 
 def _paired_timing(args: argparse.Namespace) -> int:
@@ -634,17 +665,7 @@ def _paired_timing(args: argparse.Namespace) -> int:
             f"policy {b['policy_ms_per_round']['median']} ms and env {b['env_ms_per_round']['median']} ms per round, "
             f"realtime x{b['realtime_factor']}"
         )
-    if args.json:
-        print(json.dumps(r))
-    return 0
-
-
-def _pct(x: Any) -> str:
-    return "—" if x is None else f"{100 * float(x):.1f}"
-
-
-def _num(x: Any) -> str:
-    return "—" if x is None else f"{float(x):.2f}"
+    return emit(args, r)
 
 
 def _paired(args: argparse.Namespace) -> int:
@@ -673,19 +694,14 @@ def _paired(args: argparse.Namespace) -> int:
         f"paired ({'quick' if r['quick'] else 'full'}): {len(p['tasks'])} tasks × {len(p['checkpoints'])} checkpoints "
         f"× {p['subtasks']} subtasks, R={p['rounds']}, seeds from {p['seed0']}"
     )
-    print(f"  {'variant':<15}{'SR_real':>8}{'SR_imag':>8}{'|ΔSR|':>7}{'HFR':>6}{'Pearson':>8}{'MMRV':>6}  head PSNR")
-    for name, row in r["variants"].items():
-        o = row["overall"]
-        head = (row["single_step"]["per_view"] or {}).get("cam_high", {})
-        print(
-            f"  {name:<15}{_pct(o.get('sr_real')):>8}{_pct(o.get('sr_imag')):>8}{_pct(o.get('abs_delta_sr')):>7}"
-            f"{_num(o.get('hfr')):>6}{_num(o.get('pearson')):>8}{_num(o.get('mmrv')):>6}"
-            f"  {_num(head.get('psnr_pooled'))}"
-        )
+    rows = [
+        {"variant": name, **row["overall"], "head": (row["single_step"]["per_view"] or {}).get("cam_high", {})}
+        for name, row in r["variants"].items()
+    ]
+    for line in table(PAIRED_COLUMNS, rows):
+        print(line)
     print(f"  targets: |ΔSR| ≤ 5 points, HFR ≥ 0.85, Pearson ≥ 0.95; chart {chart}")
-    if args.json:
-        print(json.dumps(r))
-    return 0
+    return emit(args, r)
 
 
 def _speed_accuracy(args: argparse.Namespace) -> int:
@@ -713,19 +729,14 @@ def _speed_accuracy(args: argparse.Namespace) -> int:
     chart = speed_accuracy_chart(r["points"], r["front_ids"], args.chart or args.out / "speed_accuracy.png")
     r["chart"] = str(chart)
     print(f"speed-accuracy ({'quick' if r['quick'] else 'full'}): {len(r['points'])} points, chart {chart}")
-    print(f"  {'point':<16}{'latency ms':>11}{'x realtime':>11}{'head PSNR':>10}{'SSIM':>7}{'|ΔSR|':>7}  front")
-    for p in r["points"]:
-        print(
-            f"  {p['id']:<16}{p['chunk_latency_ms']:>11.1f}{p['realtime_factor']:>11.1f}{_num(p['psnr_head']):>10}"
-            f"{_num(p['ssim_head']):>7}{_pct(p['abs_delta_sr']):>7}  {'*' if p['id'] in r['front_ids'] else ''}"
-        )
+    rows = [{**p, "front": "*" if p["id"] in r["front_ids"] else ""} for p in r["points"]]
+    for line in table(SPEED_ACCURACY_COLUMNS, rows):
+        print(line)
     d = r["default"]
     print(
         f"  default (knee): {d['preset']} {d['size']}, {d['steps']} steps, {d['chunk_latency_ms']:.1f} ms — {d['rule']}"
     )
-    if args.json:
-        print(json.dumps(r))
-    return 0
+    return emit(args, r)
 
 
 def _stability(args: argparse.Namespace) -> int:
@@ -749,26 +760,24 @@ def _stability(args: argparse.Namespace) -> int:
     r["chart"] = str(chart)
     print(f"stability ({'quick' if r['quick'] else 'full'}): chart {chart}")
     print("  horizon R   " + "".join(f"{row['rounds']:>7}" for row in r["horizon"]["rows"]))
-    print("  HFR         " + "".join(f"{_num(row['hfr']):>7}" for row in r["horizon"]["rows"]))
+    print("  HFR         " + "".join(f"{num(row['hfr']):>7}" for row in r["horizon"]["rows"]))
     f = r["failure_faithfulness"]
     print(
-        f"  failure faithfulness: {_pct(f['imagined_also_failed'])} % of {f['real_failures']} real failures also "
-        f"failed imagined; {_pct(f['imagined_also_succeeded'])} % of {f['real_successes']} successes succeeded"
+        f"  failure faithfulness: {pct(f['imagined_also_failed'])} % of {f['real_failures']} real failures also "
+        f"failed imagined; {pct(f['imagined_also_succeeded'])} % of {f['real_successes']} successes succeeded"
     )
     for row in r["counterfactual"]["rows"]:
         head = row["cam_high"]
-        print(f"  counterfactual policy vs {row['alternative']}: head MSE ratio pred/real {_num(head['ratio_median'])}")
+        print(f"  counterfactual policy vs {row['alternative']}: head MSE ratio pred/real {num(head['ratio_median'])}")
     print(
         "  calibration shift px → head PSNR: "
-        + ", ".join(f"{row['shift_px']:g}: {_num(row['psnr_head'])}" for row in r["calibration"]["rows"])
+        + ", ".join(f"{row['shift_px']:g}: {num(row['psnr_head'])}" for row in r["calibration"]["rows"])
     )
     print(
         "  OOD actions → head PSNR: "
-        + ", ".join(f"{row['kind']}: {_num(row['psnr_head'])}" for row in r["ood_actions"]["rows"])
+        + ", ".join(f"{row['kind']}: {num(row['psnr_head'])}" for row in r["ood_actions"]["rows"])
     )
-    if args.json:
-        print(json.dumps(r))
-    return 0
+    return emit(args, r)
 
 
 def _judges(args: argparse.Namespace) -> int:
@@ -779,9 +788,7 @@ def _judges(args: argparse.Namespace) -> int:
     print(f"judges: image-only judge agrees with the checker on {r['agreement']} of {r['n']} real episodes")
     for task, t in r["per_task"].items():
         print(f"  {task}: {t['agreement']} of {t['n']}, confusion {t['confusion']}")
-    if args.json:
-        print(json.dumps(r))
-    return 0
+    return emit(args, r)
 
 
 def _drivers(args: argparse.Namespace) -> int:
@@ -792,14 +799,10 @@ def _drivers(args: argparse.Namespace) -> int:
         f"drivers: servo {r['servo_rate_hz']} Hz (target {r['servo_rate_target_hz']}), p99 period "
         f"{r['servo_period_p99_ms']} ms; round trips: dynamixel {r['dynamixel_roundtrip_ms']} ms, "
         f"robotiq {r['robotiq_roundtrip_ms']} ms; cameras {r['camera_fps']} fps (served {r['camera_fps_served']})"
+        f"; calls (p99): gripper set_target {r['gripper_set_target_p99_ms']} ms, "
+        f"camera read_latest {r['camera_read_latest_p99_ms']} ms"
     )
-    if args.json:
-        print(json.dumps(r))
-    return 0
-
-
-def _cell(x: float | None, width: int, digits: int) -> str:
-    return f"{'—':>{width}}" if x is None else f"{x:>{width}.{digits}f}"
+    return emit(args, r)
 
 
 def _ppi(args: argparse.Namespace) -> int:
@@ -810,20 +813,10 @@ def _ppi(args: argparse.Namespace) -> int:
     r = run_ppi_bench(
         pool=args.pool, out=args.out, quick=args.quick, draws=args.draws, seed=args.seed, progress=not args.json
     )
-    if args.json:
-        print(json.dumps(r))
-        return 0
-    print(f"pool {r['pool']}: real success rate per checkpoint {r['pool_truth']}, per-pair rho {r['pool_rho']}")
-    print(f"{'method':<7} {'predictor':<14} {'n':>3} {'N':>4} {'cov PPI':>8} {'cov cl.':>8} {'ratio':>6} "
-          f"{'formula':>8} {'ESS gain':>9}")  # fmt: skip
-    for s in r["settings"]:
-        print(
-            f"{s['method']:<7} {s['predictor']:<14} {s['n']:>3} {s['N']:>4} {s['coverage_ppi']:>8.3f} "
-            f"{s['coverage_classical']:>8.3f} {_cell(s['width_ratio'], 6, 3)} {_cell(s['width_ratio_formula'], 8, 3)} "
-            f"{_cell(s['ess_gain_measured'], 9, 2)}"
-        )
-    print(json.dumps(r["checks"]))
-    return 0
+    lines = [f"pool {r['pool']}: real success rate per checkpoint {r['pool_truth']}, per-pair rho {r['pool_rho']}"]
+    lines += table(PPI_COLUMNS, r["settings"], indent="")
+    lines.append("checks: " + json.dumps(r["checks"]))
+    return emit(args, r, lines)
 
 
 def _hallucination(args: argparse.Namespace) -> int:
@@ -832,7 +825,5 @@ def _hallucination(args: argparse.Namespace) -> int:
     r = run_hallucination_bench(
         args.dataset, args.rig, seed=args.seed, per_fault=args.per_fault, progress=not args.json
     )
-    print(json.dumps({k: v for k, v in r.items() if not isinstance(v, (list, dict))}))
-    if args.json:
-        print(json.dumps(r))
-    return 0
+    summary = {k: v for k, v in r.items() if not isinstance(v, (list, dict))}
+    return emit(args, r, [", ".join(f"{k} {v}" for k, v in summary.items())])

@@ -13,10 +13,24 @@ def register(sub: Any) -> None:
     data = p.add_subparsers(dest="data_command", metavar="SUBCOMMAND")
     data.required = True
 
-    info = data.add_parser("info", help="episodes, frames, cameras, origins and outcomes of a dataset")
+    info = data.add_parser(
+        "info", help="episodes, frames, cameras, origins and outcomes of a dataset; exit 1 if files are missing"
+    )
     info.add_argument("path", type=Path, help="dataset folder (LeRobot v3.0 layout)")
     info.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     info.set_defaults(handler=_info)
+
+    verify = data.add_parser(
+        "verify",
+        help="check every file of every episode against its manifest (size and sha256); exit 1 on damage",
+    )
+    verify.add_argument("path", type=Path, help="dataset folder, or a paired / imagine run folder (with starts/)")
+    verify.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
+    verify.add_argument(
+        "--sizes-only", action="store_true", help="check existence and sizes only (no hashing: the cheap check)"
+    )
+    verify.add_argument("--no-progress", action="store_true", help="no progress bar")
+    verify.set_defaults(handler=_verify)
 
     from pilworld.cli.data_convert import add_convert_parser
 
@@ -34,6 +48,26 @@ def _info(args: argparse.Namespace) -> int:
         f"cameras {cams}; action dim {summary['action_dim']}; by origin {origins}; "
         f"{len(summary['outcomes'])} judge(s)"
     )
+    damage = summary["damage"]
+    for line in damage["problems"]:
+        print(f"  damaged: {line}")
+    if damage["problems"]:
+        n = len(damage["problems"])
+        print(f"{summary['path']}: DAMAGED, {n} file(s) missing or cut short; `pilworld data verify` checks every byte")
     if args.json:
         print(json.dumps(summary))
-    return 0
+    return 1 if damage["problems"] else 0
+
+
+def _verify(args: argparse.Namespace) -> int:
+    import sys
+
+    from pilworld.data.verify import verify
+
+    report = verify(args.path, hash_files=not args.sizes_only, progress=not args.no_progress and sys.stderr.isatty())
+    for problem in report.problems:
+        print(f"DAMAGED {problem.describe()}")
+    print(report.summary())
+    if args.json:
+        print(json.dumps(report.to_json()))
+    return 0 if report.ok else 1

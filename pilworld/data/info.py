@@ -45,4 +45,17 @@ def dataset_info(root: str | Path) -> dict[str, Any]:
         "checkpoints": dict(sorted(checkpoints.items())),
         "outcomes": summarize(read_outcomes(store.root)),
         "disk_mb": round(disk_bytes(store.root) / 2**20, 3),
+        "damage": _cheap_check(store.root),
+    }
+
+
+def _cheap_check(root: Path) -> dict[str, Any]:
+    """Files missing or of the wrong size (no hashing: ``pilworld data verify`` reads every byte)."""
+    from pilworld.data.verify import check_dataset
+
+    check = check_dataset(root, hash_files=False)
+    return {
+        "problems": [p.describe() for p in check.problems],
+        "episodes_damaged": sorted(check.damaged_episodes()),
+        "no_manifest": check.no_manifest,
     }

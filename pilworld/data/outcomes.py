@@ -35,7 +35,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pilworld.data import layout
-from pilworld.data.atomic import write_parquet
+from pilworld.data.atomic import write_json, write_parquet
 
 JudgeKind = Literal["sim_state", "vision", "human"]
 JUDGE_KINDS: tuple[str, ...] = ("sim_state", "vision", "human")
@@ -111,6 +111,18 @@ class Outcome:
         }
 
 
+OUTCOMES_MANIFEST = "meta/outcomes_manifest.json"  # size and sha256 of the table, for `pilworld data verify`
+
+
+def _write(root: Path, table: pa.Table) -> None:
+    """Rewrite the table, then its manifest (under the lock). A writer killed between the two leaves a
+    manifest one version behind, which verify reports; the next recorded verdict rewrites both."""
+    from pilworld.data.manifest import meta_manifest_text
+
+    write_parquet(root / layout.OUTCOMES, table)
+    write_json(root / OUTCOMES_MANIFEST, meta_manifest_text(root, [root / layout.OUTCOMES]))
+
+
 def read_outcomes(root: str | Path) -> list[Outcome]:
     """All verdicts of a dataset, ordered by (episode, judge); empty if none were recorded."""
     path = Path(root) / layout.OUTCOMES
@@ -147,7 +159,7 @@ def record_outcomes(root: str | Path, outcomes: Iterable[Outcome], *, num_episod
         table = {(o.episode_index, o.judge_id): o for o in read_outcomes(root)}
         table.update({(o.episode_index, o.judge_id): o for o in new})
         rows = [table[k].to_row() for k in sorted(table)]
-        write_parquet(root / layout.OUTCOMES, pa.Table.from_pylist(rows, schema=SCHEMA))
+        _write(root, pa.Table.from_pylist(rows, schema=SCHEMA))
     return len(rows)
 
 
@@ -164,9 +176,22 @@ def replace_judge_outcomes(root: str | Path, judges: set[str], outcomes: Iterabl
         keep = [o for o in old if o.judge_id not in judges]
         rows = {(o.episode_index, o.judge_id): o for o in [*keep, *new_rows]}
         table = pa.Table.from_pylist([rows[k].to_row() for k in sorted(rows)], schema=SCHEMA)
-        write_parquet(root / layout.OUTCOMES, table)
+        _write(root, table)
     new = {(o.episode_index, o.judge_id) for o in new_rows}
     return sum(1 for o in old if o.judge_id in judges and (o.episode_index, o.judge_id) not in new)
+
+
+def drop_episode_outcomes(root: str | Path, episodes: set[int]) -> int:
+    """Drop every verdict on ``episodes`` (episodes being rewritten); returns the rows dropped."""
+    root = Path(root)
+    if not (root / layout.OUTCOMES).is_file():
+        return 0
+    with _locked(root):
+        old = read_outcomes(root)
+        keep = [o.to_row() for o in old if o.episode_index not in episodes]
+        if len(keep) != len(old):
+            _write(root, pa.Table.from_pylist(keep, schema=SCHEMA))
+    return len(old) - len(keep)
 
 
 def summarize(outcomes: list[Outcome]) -> dict[str, Any]:

@@ -34,7 +34,7 @@ def read_info(root: Path) -> dict[str, Any]:
         raise DatasetError(f"{root}: not a LeRobot dataset (no {layout.INFO})")
     try:
         info: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as err:
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise DatasetError(f"{path}: not valid JSON: {err}") from None
     return info
 
@@ -118,7 +118,13 @@ class EpisodeStore:
         files = layout.episodes_meta_files(self.root)
         if not files:
             return []
-        table = pa.concat_tables([pq.read_table(f) for f in files], promote_options="permissive")
+        tables = []
+        for f in files:
+            try:
+                tables.append(pq.read_table(f))
+            except (OSError, pa.ArrowException) as err:  # a truncated or overwritten file
+                raise DatasetError(f"{f}: episodes table unreadable ({str(err).splitlines()[0]})") from None
+        table = pa.concat_tables(tables, promote_options="permissive")
         rows = sorted(table.to_pylist(), key=lambda r: int(r["episode_index"]))
         for i, row in enumerate(rows):
             if int(row["episode_index"]) != i:

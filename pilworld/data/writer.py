@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from pilworld.data import layout
 from pilworld.data.atomic import atomic_write, is_temporary, write_json, write_parquet
 from pilworld.data.episode import Episode
+from pilworld.data.manifest import MANIFEST_COLUMN, META_MANIFEST, manifest_json, meta_manifest_text
 from pilworld.data.reader import DatasetError, EpisodeStore
 from pilworld.data.spec import ACTION_KEY, CODEBASE_VERSION, STATE_KEY, DatasetSpec
 from pilworld.data.stats import aggregate, image_stats, to_jsonable, vector_stats
@@ -82,6 +83,9 @@ def tasks_table(names: list[str]) -> pa.Table:
         "pandas_version": "2.2.0",
     }
     return table.replace_schema_metadata({b"pandas": json.dumps(pandas_md).encode()})
+
+
+_META_FILES = (layout.TASKS, layout.INFO, layout.STATS, layout.PILWORLD)  # covered by meta/manifest.json
 
 
 class EpisodeWriter:
@@ -165,6 +169,12 @@ class EpisodeWriter:
                 path.unlink()
                 removed += 1
         self.recovered_files = removed
+        from pilworld.data.outcomes import drop_episode_outcomes, read_outcomes
+
+        if (self.root / layout.OUTCOMES).is_file():  # verdicts on episodes the table no longer holds
+            gone = {o.episode_index for o in read_outcomes(self.root) if o.episode_index >= n}
+            if gone:
+                drop_episode_outcomes(self.root, gone)
         self._write_info()
 
     # ------------------------------------------------------------------ writing
@@ -183,16 +193,38 @@ class EpisodeWriter:
         video mode and fps (an episode copied from another dataset of the same spec); it is copied byte
         for byte instead of encoding the frames again, which is most of the cost of a copy.
         """
+        return self._commit(len(self._rows), episode, video_files)
+
+    def replace(self, index: int, episode: Episode, *, video_files: Mapping[str, Path] | None = None) -> int:
+        """Rewrite committed episode ``index`` (one whose files were lost or damaged) with ``episode``.
+
+        The new episode must have the stored length, since later episodes' frame indices follow from it.
+        Its verdicts in the outcomes table are dropped first: they judged the old files. Each file is
+        replaced by a rename and the row last, so a writer killed midway leaves an episode whose files
+        disagree with its manifest — which is what a resumed run checks, and redoes.
+        """
+        if not 0 <= index < len(self._rows):
+            raise IndexError(f"episode {index} out of range: {self.root} has {len(self._rows)} episodes")
+        stored = int(self._rows[index]["length"])
+        if episode.length != stored:
+            raise DatasetError(
+                f"{self.root}: episode {index} is {stored} frames long; its replacement has {episode.length}"
+            )
+        from pilworld.data.outcomes import drop_episode_outcomes
+
+        drop_episode_outcomes(self.root, {index})
+        return self._commit(index, episode, video_files)
+
+    def _commit(self, e: int, episode: Episode, video_files: Mapping[str, Path] | None) -> int:
         episode.check(self.spec)
         for view, src in (video_files or {}).items():
             if view not in self.spec.views:
                 raise ValueError(f"video_files: {view!r} is not a view of {self.root} ({sorted(self.spec.views)})")
             if not Path(src).is_file():
                 raise FileNotFoundError(f"video_files: {view!r}: {src} does not exist")
-        e = len(self._rows)
         T = episode.length
         chunk, file = layout.chunk_file(e)
-        first = self.num_frames
+        first = int(self._rows[e]["dataset_from_index"]) if e < len(self._rows) else self.num_frames
         task_index = self._task_index(episode.task)
         fps = self.spec.fps
 
@@ -217,7 +249,8 @@ class EpisodeWriter:
                 "seed": pa.array(np.full(T, int(episode.seed)), pa.int64()),
             }
         )
-        write_parquet(layout.data_path(self.root, chunk, file), table, durable=self.durable)
+        files = [layout.data_path(self.root, chunk, file)]
+        write_parquet(files[0], table, durable=self.durable)
         stats: dict[str, dict[str, NDArray[np.float64]]] = {
             STATE_KEY: vector_stats(episode.state),
             ACTION_KEY: vector_stats(episode.action),
@@ -239,6 +272,7 @@ class EpisodeWriter:
             else:
                 write = partial(encode_video, episode.images[view], fps=fps, mode=self.spec.video_mode)
             atomic_write(path, write, durable=self.durable)
+            files.append(path)
             stats[key] = image_stats(episode.images[view])
             row.update(
                 {
@@ -269,14 +303,20 @@ class EpisodeWriter:
                 "checkpoint": episode.checkpoint,
                 "seed": int(episode.seed),
                 "extra": json.dumps(episode.extra, sort_keys=True) if episode.extra else "",
+                # sizes and sha256 of the files above, committed with the row (pilworld.data.manifest)
+                MANIFEST_COLUMN: manifest_json(self.root, files),
             }
         )
 
         # 2–3. the commit point: rewrite the last episodes file with the new row
-        rows = [*self._rows, row]
+        rows = [*self._rows[:e], row, *self._rows[e + 1 :]]
         in_file = [r for r in rows if int(r["episode_index"]) // layout.EPISODES_PER_META_FILE == meta_number]
+        # every row with every column: rows of an older dataset lack the newer ones (manifest), and
+        # from_pylist would take the first row's keys as the schema
+        keys = list(dict.fromkeys(k for r in in_file for k in r))
+        table_rows = [{k: r.get(k) for k in keys} for r in in_file]
         write_parquet(
-            layout.episodes_meta_path(self.root, meta_number), pa.Table.from_pylist(in_file), durable=self.durable
+            layout.episodes_meta_path(self.root, meta_number), pa.Table.from_pylist(table_rows), durable=self.durable
         )
         self._rows = rows
 
@@ -307,3 +347,6 @@ class EpisodeWriter:
             feats = sorted(set().union(*per_episode))
             agg = {f: aggregate([s[f] for s in per_episode if f in s]) for f in feats}
             write_json(self.root / layout.STATS, to_jsonable(agg), durable=self.durable)
+        # after the commit: the metadata files that episodes' own manifests cannot cover
+        meta_files = [*layout.episodes_meta_files(self.root), *(self.root / f for f in _META_FILES)]
+        write_json(self.root / META_MANIFEST, meta_manifest_text(self.root, meta_files), durable=self.durable)

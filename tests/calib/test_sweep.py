@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 
-import cv2
 import numpy as np
 import pytest
 
@@ -22,8 +21,7 @@ from calib.sweep import (
     solve_trial,
     sweep_points,
 )
-
-HAS_HAND_EYE = hasattr(cv2, "calibrateHandEye")
+from tests.calib.opencv_compat import require_hand_eye
 
 
 def test_noise_free_trial_is_solved_exactly_by_every_method() -> None:
@@ -71,10 +69,10 @@ def test_tiny_rotation_span_is_refused_by_our_methods() -> None:
         assert tiny.refused == 3 and tiny.trans_mm_median is None and tiny.exceeds == 0
         assert tiny.refusal is not None and "rotation span too small" in tiny.refusal
         assert good.refused == 0 and good.trans_mm_median is not None
-    if HAS_HAND_EYE:
-        # OpenCV's TSAI does not refuse: it returns the identity (1 m, ~170° off here).
-        tsai = result.axes["rotation_span"]["opencv_tsai"][0]
-        assert tsai.refused == 0 and tsai.exceeds == 3 and tsai.trans_mm_median > 100.0  # type: ignore[operator]
+    require_hand_eye()
+    # OpenCV's TSAI does not refuse: it returns the identity (1 m, ~170° off here).
+    tsai = result.axes["rotation_span"]["opencv_tsai"][0]
+    assert tsai.refused == 0 and tsai.exceeds == 3 and tsai.trans_mm_median > 100.0  # type: ignore[operator]
 
 
 def test_result_is_json_ready_and_methods_follow_cv2() -> None:
@@ -83,10 +81,8 @@ def test_result_is_json_ready_and_methods_follow_cv2() -> None:
     assert set(data["axes"]) == {"poses", "fk_noise"}
     assert data["methods"][:3] == ["park_martin", "shah", "refined"]
     assert data["opencv_methods_available"] == opencv_methods_available()
-    if HAS_HAND_EYE:
-        assert {"opencv_tsai", "opencv_daniilidis"} <= set(data["methods"])
-    else:  # OpenCV 5.x: no hand-eye in Python, ours only
-        assert data["methods"] == ["park_martin", "shah", "refined"]
+    require_hand_eye()
+    assert {"opencv_tsai", "opencv_daniilidis"} <= set(data["methods"])
     point = data["axes"]["poses"]["refined"][0]
     assert set(point) >= {"value", "trans_mm_median", "trans_mm_p90", "rot_deg_median", "rot_deg_p90", "refused"}
     assert point["value"] == 3 and data["defaults"]["poses"] == 10

@@ -72,5 +72,18 @@ def test_drivers_bench_reports_every_figure() -> None:
     for key in ("servo_rate_hz", "servo_period_p99_ms", "dynamixel_roundtrip_ms", "robotiq_roundtrip_ms", "camera_fps"):
         assert r[key] is not None and r[key] > 0, key
     assert set(r["servo"]) == {"left", "right"}
-    assert r["servo_rate_hz"] > 250  # 500 Hz nominal; a loaded CI machine still keeps well above half
-    assert r["camera_fps"] > 3
+    # The figures themselves are the bench's output, not pass/fail criteria (no wall-clock rates in tests):
+    # here, that each comes from real traffic and is reported consistently.
+    assert r["servo_rate_target_hz"] == 500 and r["camera_fps_served"] > 0
+    for side in ("left", "right"):
+        s = r["servo"][side]
+        assert s["cycles"] > 0 and s["period_p50_ms"] <= s["period_p99_ms"] <= s["period_max_ms"], s
+    assert r["servo_rate_hz"] == min(s["rate_hz"] for s in r["servo"].values())
+    assert r["camera_fps"] == min(r["camera_fps_per_camera"].values())
+    assert {g["side"] for g in r["grippers"].values()} == {"left", "right"}
+    # what the driver tests no longer time: set_target and read_latest, per device
+    assert set(r["gripper_set_target"]) == {"left", "right"}
+    assert set(r["camera_read_latest"]) == set(r["camera_fps_per_camera"])
+    for figures in (*r["gripper_set_target"].values(), *r["camera_read_latest"].values()):
+        assert 0 < figures["median_ms"] <= figures["p99_ms"], figures
+    assert r["gripper_set_target_p99_ms"] == max(v["p99_ms"] for v in r["gripper_set_target"].values())

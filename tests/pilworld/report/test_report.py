@@ -17,6 +17,7 @@ from pilworld.control_video.gamma import ControlVideo
 from pilworld.data.episode import Episode
 from pilworld.data.reader import DatasetError, EpisodeStore
 from pilworld.io.video import read_video
+from pilworld.metrics import write_metrics
 from pilworld.report import build_report
 from pilworld.report.media import GAP, control_frames
 from tests.pilworld.report.conftest import SIM, SPEC, Built
@@ -191,11 +192,10 @@ def test_report_reads_the_metrics_package_output(
     paired_dir: tuple[Path, dict[str, int | None]], tmp_path: Path
 ) -> None:
     """metrics.json as pilworld.metrics writes it (one setting: Pearson undefined, with its reason)."""
-    metrics = pytest.importorskip("pilworld.metrics")
     run, _ = paired_dir
     copy = tmp_path / "run"
     shutil.copytree(run, copy, ignore=shutil.ignore_patterns("report.html", "metrics.json"))
-    written = metrics.write_metrics(copy, bootstrap=50, lpips=False)
+    written = write_metrics(copy, bootstrap=50, lpips=False)
     page = parse(build_report(copy, max_pairs=0).read_text(encoding="utf-8"))
     table, ranks = page.by_id("metrics-table"), page.by_id("rank-table")
     assert table is not None and ranks is not None
