@@ -9,10 +9,12 @@ Three TCP servers on one loopback address, as on a real controller:
 * dashboard (29999): the line protocol, answering the strings ur_rtde compares against.
 * script (30003): accepts the uploaded ``rtde_control`` program and *emulates* it rather than interpreting
   URScript: a 500 Hz controller thread plays the script's main loop on the RTDE registers
-  (``input_int_register_0`` = command, ``output_int_register_0`` 1 = ready / 2 = done). Emulated: servoJ (11,
-  real-time: processed and ready again), moveJ (1, blocking unless async), servoStop (16), speedStop (15),
-  stopJ/stopL (34/33), setWatchdog (35, action "stop"), triggerProtectiveStop (31), stopScript (255); any
-  other command is acknowledged as done without effect.
+  (``input_int_register_0`` = command, ``output_int_register_0`` 1 = ready / 2 = done). The emulated
+  command ids are :data:`~hw_drivers.fakes.ur_commands.IMPLEMENTED` (moveJ/moveL and their IK/FK variants,
+  speedJ, servoJ, the stops, setTcp and the kinematics getters, computed with :mod:`pilworld.kinematics`
+  for the ``ur5e``); any other id stops the program as a URScript runtime error would (``last_error`` says
+  which), so the client's call returns False or raises instead of succeeding silently.
+  ``timestamp`` is the simulated clock: control cycles x 2 ms.
 
 The arm is the ``side`` arm of a :class:`~hw_drivers.fakes.backend.RigBackend`: ``actual_q``/``actual_qd`` are
 read from it and servoJ/moveJ targets written to it. Faults (:class:`~hw_drivers.fakes.faults.FaultSwitch`):
@@ -45,6 +47,10 @@ from numpy.typing import NDArray
 
 from hw_drivers.fakes.backend import RigBackend, check_side
 from hw_drivers.fakes.faults import FaultSwitch
+from hw_drivers.fakes.ur_commands import IMPLEMENTED, REALTIME, describe
+from hw_drivers.fakes.ur_pose import interpolate, matrix_to_pose, pose_to_matrix
+from pilworld.kinematics.fk import fk, fk_flange
+from pilworld.kinematics.ik import ik_nearest
 
 RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT = 30004, 29999, 30003
 CONTROLLER_VERSION = (5, 11, 1, 108318)
@@ -62,7 +68,6 @@ SAFETY = {  # name -> (safety_mode, safety_status_bits, dashboard word)
     "emergency_stop": (7, (1 << 6) | (1 << 7) | (1 << 10), "ROBOT_EMERGENCY_STOP"),
 }
 ROBOT_MODE_NAMES = {POWER_OFF: "POWER_OFF", IDLE: "IDLE", RUNNING: "RUNNING"}
-REALTIME_CMDS = {6, 9, 10, 11, 24, 25, 26, 27, 38, 58, 66, 67, 68, 69, 70, 71}  # script: process, then ready
 STOP_CMDS = {15, 16, 33, 34}  # speedStop, servoStop, stopL, stopJ
 
 _FMT = {"VECTOR6D": "6d", "VECTOR3D": "3d", "DOUBLE": "d", "INT32": "i", "UINT32": "I", "UINT64": "Q"}
@@ -147,7 +152,6 @@ class FakeURController:
         self._threads: list[threading.Thread] = []
         self._servers: list[socket.socket] = []
         self._clients: set[socket.socket] = set()
-        self._t0 = time.monotonic()
         self.in_int, self.in_double = [0] * 48, [0.0] * 48
         self.out_int, self.out_double = [0] * 48, [0.0] * 48
         self.runtime_state, self.robot_mode, self.safety = STOPPED, RUNNING, "normal"
@@ -159,6 +163,12 @@ class FakeURController:
         self._watchdog_s: float | None = None
         self._last_kick = 0.0
         self._program: str | None = None
+        self.dh = "ur5e"  # the rig's arms
+        self.tcp = np.eye(4)  # T_flange_tcp, set by setTcp (29)
+        self.ticks = 0  # control cycles run: the simulated clock (timestamp = ticks * TICK_S)
+        self._velocity: NDArray[np.float64] | None = None  # speedJ joint velocity
+        self._line: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None  # moveL
+        self.last_error: str | None = None  # why the emulated program stopped, as a runtime error would say
 
     # -- lifecycle
 
@@ -256,6 +266,7 @@ class FakeURController:
             if self.faults.active("stall"):
                 continue
             with self._lock:
+                self.ticks += 1
                 self._safety_tick()
                 if self.runtime_state == PLAYING:
                     self._script_tick()
@@ -278,6 +289,7 @@ class FakeURController:
     def _halt(self) -> None:
         """Stop the program and hold the arm where it is."""
         self.runtime_state, self.servoing, self._blocking, self._goal = STOPPED, False, False, None
+        self._velocity, self._line = None, None
         self._watchdog_s = None
         self._hold()
 
@@ -285,13 +297,26 @@ class FakeURController:
         self._setpoint = self.backend.arm_q(self.side)
         self.backend.set_arm_target(self.side, self._setpoint)
 
+    def _fail(self, why: str) -> None:
+        """A URScript runtime error: the program stops, so the client's call returns False / raises."""
+        self.last_error = why
+        self._halt()
+
     def _script_tick(self) -> None:
+        if self._velocity is not None:
+            self._setpoint = self._setpoint + self._velocity * TICK_S
+            self.backend.set_arm_target(self.side, self._setpoint)
+        if self._line is not None:
+            self._step_line()
         if self._goal is not None:
             self._step_move()
         if self._blocking:
-            return  # a blocking movej: the script does not read commands until it returns
+            return  # a blocking movej/movel: the script does not read commands until it returns
         cmd = self.in_int[0]
-        if cmd in REALTIME_CMDS:
+        if cmd != 0 and cmd not in IMPLEMENTED:
+            self._fail(f"{describe(cmd)} is not emulated by the fake controller")
+            return
+        if cmd in REALTIME:
             self._process(cmd)
             self.out_int[0] = 1
         elif cmd == 0:
@@ -304,18 +329,47 @@ class FakeURController:
                 self.out_int[0] = 2
 
     def _process(self, cmd: int) -> None:
+        try:
+            self._process_cmd(cmd)
+        except ValueError as e:  # bad arguments (NaN pose, no IK solution): URScript raises, the program stops
+            self._fail(f"{describe(cmd)}: {e}")
+
+    def _ik(self, pose: NDArray[np.float64], seed: NDArray[np.float64]) -> NDArray[np.float64]:
+        q = ik_nearest(pose_to_matrix(pose), self.dh, seed, self.tcp)
+        if q is None:
+            raise ValueError(f"no inverse kinematics solution for pose {np.round(pose, 4).tolist()}")
+        return q
+
+    def _start_movej(self, q: NDArray[np.float64], speed: float, blocking: bool) -> None:
+        self.servoing, self._goal, self._velocity, self._line = False, q, None, None
+        self._speed = max(1e-3, speed)
+        self._setpoint = self.backend.arm_q(self.side)
+        self._blocking = blocking
+
+    def _process_cmd(self, cmd: int) -> None:
         q = np.array(self.in_double[:6])
-        if cmd == 11:  # servoJ: the servo thread tracks the latest target
+        blocking = self.in_int[1] == 0
+        if cmd in (29, 40, 43, 44, 46, 30, 58):
+            self._query(cmd, q)
+        elif cmd == 2:  # moveJ_IK(pose, speed, acceleration, async)
+            self._start_movej(self._ik(q, self._setpoint), self.in_double[6], blocking)
+        elif cmd in (3, 4):  # moveL(pose, …) / moveL_FK(q, …): a straight TCP line, joints through IK
+            goal = pose_to_matrix(q) if cmd == 3 else fk(q, self.dh, self.tcp)
+            self._start_movej(self.backend.arm_q(self.side), self.in_double[6], blocking)
+            self._goal = None
+            start = fk(self._setpoint, self.dh, self.tcp)
+            self._line = (start, goal, max(1e-4, self.in_double[6]), 0.0)
+        elif cmd == 9:  # speedJ(qd, acceleration, time): joint velocity until speedStop / another command
+            self.servoing, self._goal, self._line = False, None, None
+            self._velocity = q
+        elif cmd == 11:  # servoJ: the servo thread tracks the latest target
             self.servoing, self._goal = True, None
             self._setpoint = q
             self.backend.set_arm_target(self.side, q)
         elif cmd == 1:  # moveJ(q, speed, acceleration, async)
-            self.servoing, self._goal = False, q
-            self._speed = max(1e-3, self.in_double[6])
-            self._setpoint = self.backend.arm_q(self.side)
-            self._blocking = self.in_int[1] == 0
+            self._start_movej(q, self.in_double[6], blocking)
         elif cmd in STOP_CMDS:
-            self.servoing, self._goal = False, None
+            self.servoing, self._goal, self._velocity, self._line = False, None, None, None
             self._hold()
         elif cmd == 35:  # setWatchdog(min_frequency)
             self._watchdog_s = 1.0 / max(1e-3, self.in_double[0])
@@ -325,6 +379,43 @@ class FakeURController:
             self._halt()
         elif cmd == 255:  # stopScript
             self._halt()
+
+    def _query(self, cmd: int, arg: NDArray[np.float64]) -> None:
+        """setTcp and the kinematics getters; results go to output_double_register_0…5."""
+        d = np.array(self.in_double[:14])
+        if cmd == 29:  # setTcp(pose)
+            self.tcp = pose_to_matrix(arg)
+            return
+        if cmd == 40:  # getTCPOffset
+            result = matrix_to_pose(self.tcp)
+        elif cmd == 43:  # getForwardKinematics(): the current joints with the active TCP
+            result = matrix_to_pose(fk(self.backend.arm_q(self.side), self.dh, self.tcp))
+        elif cmd == 44:  # getForwardKinematics(q, tcp_offset)
+            result = matrix_to_pose(fk(arg, self.dh, pose_to_matrix(d[6:12])))
+        elif cmd == 46:  # getInverseKinematics(x): the solution nearest the current joints
+            result = self._ik(arg, self.backend.arm_q(self.side))
+        elif cmd == 30:  # getInverseKinematics(x, qnear, max errors): nearest to qnear
+            result = self._ik(arg, d[6:12])
+        else:  # 58 getActualToolFlangePose
+            result = matrix_to_pose(fk_flange(self.backend.arm_q(self.side), self.dh))
+        self.out_double[:6] = [float(v) for v in result]
+
+    def _step_line(self) -> None:
+        """One cycle of moveL: advance along the straight line at the commanded speed [m/s], joints by IK."""
+        assert self._line is not None
+        start, goal, speed, s = self._line
+        length = float(np.linalg.norm(goal[:3, 3] - start[:3, 3]))
+        s = 1.0 if length < 1e-9 else min(1.0, s + speed * TICK_S / length)
+        q = ik_nearest(interpolate(start, goal, s), self.dh, self._setpoint, self.tcp)
+        if q is None:
+            self._fail("moveL: the straight line leaves the workspace (no inverse kinematics solution)")
+            return
+        self._setpoint = q
+        self.backend.set_arm_target(self.side, q)
+        self._line = None if s >= 1.0 else (start, goal, speed, s)
+        if self._line is None:
+            self._goal = q  # settle: done once the arm has reached the last point
+            self._speed = np.inf
 
     def _step_move(self) -> None:
         assert self._goal is not None
@@ -347,6 +438,8 @@ class FakeURController:
             self.runtime_state = PLAYING
             self._executing = self._blocking = self.servoing = False
             self._goal, self._watchdog_s = None, None
+            self._velocity, self._line, self.last_error = None, None, None
+            self.tcp = np.eye(4)  # the uploaded script starts with the installation's TCP (the flange here)
             self._hold()
             self.out_int[0] = 1  # signal_ready()
 
@@ -426,7 +519,7 @@ class FakeURController:
             safety_mode, safety_bits, _ = SAFETY[self.safety]
             powered = self.robot_mode in (IDLE, RUNNING)
             scalars: dict[str, float | int] = {
-                "timestamp": time.monotonic() - self._t0,
+                "timestamp": self.ticks * TICK_S,  # the simulated clock: frozen while stalled
                 "robot_mode": self.robot_mode,
                 "safety_mode": safety_mode,
                 "safety_status_bits": safety_bits,
@@ -435,10 +528,16 @@ class FakeURController:
                 "speed_scaling": 1.0,
                 "target_speed_fraction": 1.0,
             }
+            target = self._setpoint.copy()
+            tcp = self.tcp.copy()
             flat: list[float | int] = []
             for name, rtde_type in outputs:
-                if name in ("actual_q", "target_q"):
+                if name == "actual_q":
                     flat.extend(q.tolist())
+                elif name == "target_q":
+                    flat.extend(target.tolist())
+                elif name in ("actual_TCP_pose", "target_TCP_pose"):
+                    flat.extend(matrix_to_pose(fk(q if name[0] == "a" else target, self.dh, tcp)).tolist())
                 elif name in ("actual_qd", "target_qd"):
                     flat.extend(qd.tolist())
                 elif name == "joint_mode":
