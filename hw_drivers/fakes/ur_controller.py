@@ -35,6 +35,7 @@ The ur_rtde constructors hold the GIL, so the client must never run in the proce
 from __future__ import annotations
 
 import contextlib
+import re
 import select
 import socket
 import struct
@@ -135,6 +136,21 @@ def _type_of(name: str, direction: str) -> str:
     return table.get(name, "NOT_FOUND")
 
 
+# A waypoint line ur_rtde's Path::toScriptCode injects into exec_move_path(): movej([q…],a=…,v=…,r=…)
+_PATH_LINE = re.compile(r"^\s*(movej|movel)\((p?)\[([^\]]*)\],a=([^,]+),v=([^,]+),r=([^)]+)\)\s*$")
+Waypoint = tuple[str, bool, NDArray[np.float64], float]  # move, is a pose, target, speed
+
+
+def parse_path(script: str) -> list[Waypoint]:
+    """The waypoints of an uploaded program's movej/movel lines; blend radius and acceleration are not used."""
+    path: list[Waypoint] = []
+    for line in script.splitlines():
+        if (m := _PATH_LINE.match(line)) is not None:
+            target = np.array([float(v) for v in m.group(3).split(",")])
+            path.append((m.group(1), m.group(2) == "p", target, float(m.group(5))))
+    return path
+
+
 def _frame(msg_type: int, payload: bytes = b"") -> bytes:
     return struct.pack(">HB", 3 + len(payload), msg_type) + payload
 
@@ -163,11 +179,17 @@ class FakeURController:
         self._watchdog_s: float | None = None
         self._last_kick = 0.0
         self._program: str | None = None
+        self._body = ""  # the uploaded program's text (inside its top-level def)
         self.dh = "ur5e"  # the rig's arms
         self.tcp = np.eye(4)  # T_flange_tcp, set by setTcp (29)
         self.ticks = 0  # control cycles run: the simulated clock (timestamp = ticks * TICK_S)
         self._velocity: NDArray[np.float64] | None = None  # speedJ joint velocity
         self._line: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None  # moveL
+        self._path: list[Waypoint] = []  # the movej/movel lines of the uploaded program (command 45)
+        self._queue: list[Waypoint] = []  # waypoints of a running path still to go
+        self._path_index = 0
+        self._async = False
+        self._async_writes = self._async_op = 0
         self.last_error: str | None = None  # why the emulated program stopped, as a runtime error would say
 
     # -- lifecycle
@@ -289,7 +311,7 @@ class FakeURController:
     def _halt(self) -> None:
         """Stop the program and hold the arm where it is."""
         self.runtime_state, self.servoing, self._blocking, self._goal = STOPPED, False, False, None
-        self._velocity, self._line = None, None
+        self._velocity, self._line, self._queue = None, None, []
         self._watchdog_s = None
         self._hold()
 
@@ -310,6 +332,11 @@ class FakeURController:
             self._step_line()
         if self._goal is not None:
             self._step_move()
+        if self._goal is None and self._line is None and self._queue:
+            self._next_waypoint()
+        if self._async and self._goal is None and self._line is None and not self._queue:
+            self._async = False
+            self._async_progress(-1)
         if self._blocking:
             return  # a blocking movej/movel: the script does not read commands until it returns
         cmd = self.in_int[0]
@@ -345,6 +372,34 @@ class FakeURController:
         self._speed = max(1e-3, speed)
         self._setpoint = self.backend.arm_q(self.side)
         self._blocking = blocking
+        if not blocking:
+            self._async = True
+            self._async_progress(0)
+
+    def _start_movel(self, goal: NDArray[np.float64], speed: float) -> None:
+        """A straight TCP line from where the arm is to ``goal`` (4x4) at ``speed`` [m/s]."""
+        self._setpoint = self.backend.arm_q(self.side)
+        self._line = (fk(self._setpoint, self.dh, self.tcp), goal, max(1e-4, speed), 0.0)
+
+    def _async_progress(self, value: int) -> None:
+        """write_async_progress_register(): op id bits 24-30, write count 16-23, bit 15 running, progress 0-14."""
+        self._async_writes = (self._async_writes + 1) % 128
+        if value == 0:
+            self._async_op = (self._async_op + 1) % 128
+        reg = self._async_writes * 65536 + self._async_op * 16777216
+        self.out_int[2] = reg + min(value, 32767) + 32768 if value >= 0 else reg
+
+    def _next_waypoint(self) -> None:
+        move, is_pose, target, speed = self._queue.pop(0)
+        if self._async:
+            self._async_progress(self._path_index)
+        self._path_index += 1
+        if move == "movej":
+            q = self._ik(target, self._setpoint) if is_pose else target
+            self._goal, self._speed = q, max(1e-3, speed)
+            self._setpoint = self.backend.arm_q(self.side)
+        else:
+            self._start_movel(pose_to_matrix(target) if is_pose else fk(target, self.dh, self.tcp), speed)
 
     def _process_cmd(self, cmd: int) -> None:
         q = np.array(self.in_double[:6])
@@ -357,8 +412,12 @@ class FakeURController:
             goal = pose_to_matrix(q) if cmd == 3 else fk(q, self.dh, self.tcp)
             self._start_movej(self.backend.arm_q(self.side), self.in_double[6], blocking)
             self._goal = None
-            start = fk(self._setpoint, self.dh, self.tcp)
-            self._line = (start, goal, max(1e-4, self.in_double[6]), 0.0)
+            self._start_movel(goal, self.in_double[6])
+        elif cmd == 45:  # moveJ/moveL(path): the waypoints were injected into the re-uploaded program
+            if not self._path:
+                raise ValueError("the uploaded program has no movej/movel path")
+            self._start_movej(self.backend.arm_q(self.side), 1.0, blocking)
+            self._goal, self._queue, self._path_index = None, list(self._path), 0
         elif cmd == 9:  # speedJ(qd, acceleration, time): joint velocity until speedStop / another command
             self.servoing, self._goal, self._line = False, None, None
             self._velocity = q
@@ -369,7 +428,10 @@ class FakeURController:
         elif cmd == 1:  # moveJ(q, speed, acceleration, async)
             self._start_movej(q, self.in_double[6], blocking)
         elif cmd in STOP_CMDS:
-            self.servoing, self._goal, self._velocity, self._line = False, None, None, None
+            self.servoing, self._goal, self._velocity, self._line, self._queue = False, None, None, None, []
+            if self._async:
+                self._async = False
+                self._async_progress(-1)
             self._hold()
         elif cmd == 35:  # setWatchdog(min_frequency)
             self._watchdog_s = 1.0 / max(1e-3, self.in_double[0])
@@ -426,19 +488,22 @@ class FakeURController:
         self.backend.set_arm_target(self.side, self._setpoint)
         if largest <= step and np.max(np.abs(self.backend.arm_q(self.side) - self._goal)) < 1e-3:
             self._goal = None
-            if self._blocking:
+            if self._blocking and not self._queue:
                 self._blocking = False
                 self.out_int[0] = 2
 
-    def _start_program(self, name: str) -> None:
+    def _start_program(self, name: str, body: str = "") -> None:
         with self._lock:
             if name != "rtde_control" or self.safety != "normal" or self.robot_mode != RUNNING:
                 return  # only ur_rtde's control script is emulated; a stopped robot cannot run programs
-            self._program = name
+            self._program, self._body = name, body
+            self._path = parse_path(body)
             self.runtime_state = PLAYING
             self._executing = self._blocking = self.servoing = False
             self._goal, self._watchdog_s = None, None
-            self._velocity, self._line, self.last_error = None, None, None
+            self._velocity, self._line, self.last_error, self._queue = None, None, None, []
+            self._async = False
+            self._async_progress(-1)  # reset_async_progress()
             self.tcp = np.eye(4)  # the uploaded script starts with the installation's TCP (the flange here)
             self._hold()
             self.out_int[0] = 1  # signal_ready()
@@ -579,7 +644,7 @@ class FakeURController:
             if cmd == "play":
                 if self._program is None:
                     return "Failed to execute: play"
-                self._start_program(self._program)
+                self._start_program(self._program, self._body)
                 return "Starting program" if self.runtime_state == PLAYING else "Failed to execute: play"
             if cmd == "pause":
                 self._halt()
@@ -626,6 +691,7 @@ class FakeURController:
         """Collect top-level ``def name(): … end`` programs; a complete one starts (and replaces) the program."""
         pending = b""
         name: str | None = None
+        body: list[str] = []
         while self._running.is_set():
             if not select.select([conn], [], [], 0.1)[0]:
                 continue
@@ -637,7 +703,9 @@ class FakeURController:
             for raw in lines:
                 line = raw.decode(errors="replace").rstrip()
                 if line.startswith("def ") and line.endswith("():"):
-                    name = line[4:-3].strip()
+                    name, body = line[4:-3].strip(), []
                 elif line == "end" and name is not None:
-                    self._start_program(name)
+                    self._start_program(name, "\n".join(body))
                     name = None
+                elif name is not None:
+                    body.append(line)

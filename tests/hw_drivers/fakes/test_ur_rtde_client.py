@@ -67,6 +67,22 @@ out["speedstop"] = c.speedStop()
 time.sleep(0.05)
 a = [r.getTimestamp()] + r.getTargetQ(); time.sleep(0.2); b = [r.getTimestamp()] + r.getTargetQ()
 out["stopped"] = [a, b]
+PATH = [Q_HOME[:], Q_HOME[:], Q_HOME[:]]
+PATH[0][0] += 0.3; PATH[1][1] += 0.2; PATH[2][0] -= 0.2
+out["path"] = [p for p in PATH]
+t0 = r.getTimestamp()
+out["before_path"] = r.getActualQ()
+out["movej_path"] = c.moveJ([p + [1.0, 2.0, 0.0] for p in PATH])
+out["path_sim_s"] = r.getTimestamp() - t0
+time.sleep(0.05)
+out["after_path"] = r.getActualQ()
+out["async_movej"] = c.moveJ(Q_HOME, 0.5, 1.0, True)
+time.sleep(0.1)
+out["progress_running"] = c.getAsyncOperationProgress()
+out["stopj"] = c.stopJ(2.0)
+time.sleep(0.05)
+out["progress_stopped"] = c.getAsyncOperationProgress()
+q_a = r.getActualQ(); time.sleep(0.1); out["held"] = [q_a, r.getActualQ()]
 out["running_before_unsupported"] = c.isProgramRunning()
 out["unsupported"] = c.zeroFtSensor()  # command 8: not emulated
 time.sleep(0.05)
@@ -90,7 +106,7 @@ def session() -> Iterator[tuple[dict[str, Any], FakeURController]]:
 
 def test_command_table_partitions_the_ids() -> None:
     assert set(NAMES) >= IMPLEMENTED and not IMPLEMENTED & UNSUPPORTED and set(NAMES) == IMPLEMENTED | UNSUPPORTED
-    assert 8 in UNSUPPORTED and 45 in UNSUPPORTED  # zeroFtSensor, moveJ/moveL(path)
+    assert 8 in UNSUPPORTED and 10 in UNSUPPORTED and 45 in IMPLEMENTED  # zeroFtSensor, speedL; paths
 
 
 def test_movej_blocks_for_its_duration_on_the_sim_clock(session: tuple[dict[str, Any], FakeURController]) -> None:
@@ -142,6 +158,24 @@ def test_speedj_velocity_on_the_sim_clock_and_speedstop(session: tuple[dict[str,
     a, b = out["stopped"]
     assert b[0] > a[0] + 0.1  # the sim clock runs on …
     np.testing.assert_allclose(b[1:], a[1:], atol=1e-12)  # … and the target holds still
+
+
+def test_movej_path_ends_at_its_last_waypoint(session: tuple[dict[str, Any], FakeURController]) -> None:
+    out, _ = session
+    assert out["movej_path"] is True
+    np.testing.assert_allclose(out["after_path"], out["path"][-1], atol=1e-3)
+    # one leg after the other at 1 rad/s on each leg's largest joint (blends are not emulated)
+    legs = np.abs(np.diff(np.array([out["before_path"], *out["path"]]), axis=0)).max(axis=1).sum()
+    assert legs * 0.95 < out["path_sim_s"] < legs + 0.5
+
+
+def test_async_movej_reports_progress_and_stopj_halts(session: tuple[dict[str, Any], FakeURController]) -> None:
+    out, _ = session
+    assert out["async_movej"] is True  # returns at once; stopJ returns None in ur_rtde 1.6.5
+    assert out["progress_running"] >= 0  # running (a single move: progress 0)
+    assert out["progress_stopped"] < 0  # finished: -1 / -2
+    np.testing.assert_allclose(out["held"][1], out["held"][0], atol=1e-6)
+    assert not np.allclose(out["held"][1], Q_HOME, atol=1e-3)  # stopped partway
 
 
 def test_unimplemented_command_fails_visibly(session: tuple[dict[str, Any], FakeURController]) -> None:
