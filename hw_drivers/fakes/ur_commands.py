@@ -86,7 +86,9 @@ NAMES: dict[int, str] = {
 # The script's main loop processes these and signals "ready" again without "done" (rtde_control.script 1.6.5).
 REALTIME = frozenset({6, 9, 10, 11, 24, 25, 26, 27, 38, 58, 66, 67, 68, 69, 70, 71})
 
-IMPLEMENTED = frozenset({1, 2, 3, 4, 9, 11, 15, 16, 29, 30, 31, 33, 34, 35, 40, 43, 44, 45, 46, 58, 255})
+IMPLEMENTED = frozenset(
+    {1, 2, 3, 4, 9, 10, 11, 15, 16, 24, 29, 30, 31, 33, 34, 35, 40, 43, 44, 45, 46, 47, 58, 60, 61, 255}
+)
 UNSUPPORTED = frozenset(NAMES) - IMPLEMENTED
 
 

@@ -49,7 +49,7 @@ from numpy.typing import NDArray
 from hw_drivers.fakes.backend import RigBackend, check_side
 from hw_drivers.fakes.faults import FaultSwitch
 from hw_drivers.fakes.ur_commands import IMPLEMENTED, REALTIME, describe
-from hw_drivers.fakes.ur_pose import interpolate, matrix_to_pose, pose_to_matrix
+from hw_drivers.fakes.ur_pose import interpolate, matrix_to_pose, pose_to_matrix, rotvec_to_matrix
 from pilworld.kinematics.fk import fk, fk_flange
 from pilworld.kinematics.ik import ik_nearest
 
@@ -183,7 +183,8 @@ class FakeURController:
         self.dh = "ur5e"  # the rig's arms
         self.tcp = np.eye(4)  # T_flange_tcp, set by setTcp (29)
         self.ticks = 0  # control cycles run: the simulated clock (timestamp = ticks * TICK_S)
-        self._velocity: NDArray[np.float64] | None = None  # speedJ joint velocity
+        self._velocity: NDArray[np.float64] | None = None  # speedJ joint velocity, or speedL TCP twist …
+        self._cartesian = False  # … when this is set: [vx, vy, vz] m/s, [wx, wy, wz] rad/s in the base frame
         self._line: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None  # moveL
         self._path: list[Waypoint] = []  # the movej/movel lines of the uploaded program (command 45)
         self._queue: list[Waypoint] = []  # waypoints of a running path still to go
@@ -319,6 +320,21 @@ class FakeURController:
         self._setpoint = self.backend.arm_q(self.side)
         self.backend.set_arm_target(self.side, self._setpoint)
 
+    def _step_speed(self, v: NDArray[np.float64]) -> None:
+        """One cycle of speedJ (joint velocity) or speedL (TCP twist, joints by IK)."""
+        if not self._cartesian:
+            self._setpoint = self._setpoint + v * TICK_S
+        else:
+            T = fk(self._setpoint, self.dh, self.tcp)
+            T[:3, 3] += v[:3] * TICK_S
+            T[:3, :3] = rotvec_to_matrix(v[3:] * TICK_S) @ T[:3, :3]
+            q = ik_nearest(T, self.dh, self._setpoint, self.tcp)
+            if q is None:
+                self._fail("speedL: the motion leaves the workspace (no inverse kinematics solution)")
+                return
+            self._setpoint = q
+        self.backend.set_arm_target(self.side, self._setpoint)
+
     def _fail(self, why: str) -> None:
         """A URScript runtime error: the program stops, so the client's call returns False / raises."""
         self.last_error = why
@@ -326,8 +342,7 @@ class FakeURController:
 
     def _script_tick(self) -> None:
         if self._velocity is not None:
-            self._setpoint = self._setpoint + self._velocity * TICK_S
-            self.backend.set_arm_target(self.side, self._setpoint)
+            self._step_speed(self._velocity)
         if self._line is not None:
             self._step_line()
         if self._goal is not None:
@@ -418,11 +433,22 @@ class FakeURController:
                 raise ValueError("the uploaded program has no movej/movel path")
             self._start_movej(self.backend.arm_q(self.side), 1.0, blocking)
             self._goal, self._queue, self._path_index = None, list(self._path), 0
-        elif cmd == 9:  # speedJ(qd, acceleration, time): joint velocity until speedStop / another command
-            self.servoing, self._goal, self._line = False, None, None
-            self._velocity = q
+        elif cmd in (9, 10):  # speedJ(qd, …) / speedL(xd, …): a velocity until speedStop / another command
+            self.servoing, self._goal, self._line, self._queue = False, None, None, []
+            self._velocity, self._cartesian = q, cmd == 10
+        elif cmd == 24:  # servoL(pose, …): servoJ to the IK solution nearest the setpoint (real-time)
+            self.servoing, self._goal, self._velocity, self._line, self._queue = True, None, None, None, []
+            self._setpoint = self._ik(q, self._setpoint)
+            self.backend.set_arm_target(self.side, self._setpoint)
+        elif cmd == 47:  # isSteady → output_int_register_1
+            moving = self._goal is not None or self._line is not None or self._velocity is not None or self._queue
+            still = float(np.max(np.abs(self.backend.arm_qd(self.side)))) < 1e-4
+            self.out_int[1] = int(still and not moving)
+        elif cmd in (60, 61):  # getInverseKinematicsHasSolution(x[, qnear, …]) → output_int_register_1
+            seed = self.backend.arm_q(self.side) if cmd == 60 else np.array(self.in_double[6:12])
+            self.out_int[1] = int(ik_nearest(pose_to_matrix(q), self.dh, seed, self.tcp) is not None)
         elif cmd == 11:  # servoJ: the servo thread tracks the latest target
-            self.servoing, self._goal = True, None
+            self.servoing, self._goal, self._velocity, self._line, self._queue = True, None, None, None, []
             self._setpoint = q
             self.backend.set_arm_target(self.side, q)
         elif cmd == 1:  # moveJ(q, speed, acceleration, async)

@@ -83,6 +83,24 @@ out["stopj"] = c.stopJ(2.0)
 time.sleep(0.05)
 out["progress_stopped"] = c.getAsyncOperationProgress()
 q_a = r.getActualQ(); time.sleep(0.1); out["held"] = [q_a, r.getActualQ()]
+c.moveJ(Q_HOME, 1.0, 1.0)
+time.sleep(0.05)
+out["steady"] = c.isSteady()
+out["has_ik"] = c.getInverseKinematicsHasSolution(r.getActualTCPPose())
+out["has_ik_far"] = c.getInverseKinematicsHasSolution([3.0, 0.0, 0.2, 0.0, 3.14, 0.0])
+p0 = r.getTargetTCPPose(); t0 = r.getTimestamp()
+out["speedl"] = c.speedL([0.05, 0.0, -0.02, 0.0, 0.0, 0.0], 1.0, 0.002)
+time.sleep(0.4)
+out["speedl_mid"] = r.getTargetTCPPose()  # the setpoint while moving: exactly on the line
+out["speedstop_l"] = c.speedStop()
+time.sleep(0.05)
+out["speedl_run"] = [t0, p0, r.getTimestamp(), r.getTargetTCPPose()]
+goal = list(r.getActualTCPPose()); goal[2] += 0.01
+for _ in range(100):
+    t = c.initPeriod(); c.servoL(goal, 0.0, 0.0, 0.002, 0.1, 300); c.waitPeriod(t)
+c.servoStop()
+time.sleep(0.1)
+out["servol"] = [goal, r.getActualTCPPose()]
 out["running_before_unsupported"] = c.isProgramRunning()
 out["unsupported"] = c.zeroFtSensor()  # command 8: not emulated
 time.sleep(0.05)
@@ -106,7 +124,7 @@ def session() -> Iterator[tuple[dict[str, Any], FakeURController]]:
 
 def test_command_table_partitions_the_ids() -> None:
     assert set(NAMES) >= IMPLEMENTED and not IMPLEMENTED & UNSUPPORTED and set(NAMES) == IMPLEMENTED | UNSUPPORTED
-    assert 8 in UNSUPPORTED and 10 in UNSUPPORTED and 45 in IMPLEMENTED  # zeroFtSensor, speedL; paths
+    assert 8 in UNSUPPORTED and 12 in UNSUPPORTED and 45 in IMPLEMENTED  # zeroFtSensor, servoC; paths
 
 
 def test_movej_blocks_for_its_duration_on_the_sim_clock(session: tuple[dict[str, Any], FakeURController]) -> None:
@@ -176,6 +194,34 @@ def test_async_movej_reports_progress_and_stopj_halts(session: tuple[dict[str, A
     assert out["progress_stopped"] < 0  # finished: -1 / -2
     np.testing.assert_allclose(out["held"][1], out["held"][0], atol=1e-6)
     assert not np.allclose(out["held"][1], Q_HOME, atol=1e-3)  # stopped partway
+
+
+def test_is_steady_and_ik_has_solution(session: tuple[dict[str, Any], FakeURController]) -> None:
+    out, _ = session
+    assert out["steady"] is True and out["has_ik"] is True and out["has_ik_far"] is False
+
+
+def test_speedl_moves_the_tcp_in_a_straight_line(session: tuple[dict[str, Any], FakeURController]) -> None:
+    out, _ = session
+    assert out["speedl"] is True and out["speedstop_l"] is True
+    t0, p0, t1, p1 = out["speedl_run"]
+    moved = np.array(p1[:3]) - np.array(p0[:3])
+    # speedL ran for part of [t0, t1] on the simulated clock, so the distance is at most v * (t1 - t0); speedStop
+    # holds where the (slightly lagging, joint-space) arm is, hence its direction to 3e-3; the setpoint while
+    # moving is on the line exactly
+    direction = np.array([0.05, 0, -0.02]) / np.hypot(0.05, 0.02)
+    np.testing.assert_allclose(moved / np.linalg.norm(moved), direction, atol=3e-3)
+    mid = np.array(out["speedl_mid"])
+    np.testing.assert_allclose((mid[:3] - p0[:3]) / np.linalg.norm(mid[:3] - p0[:3]), direction, atol=1e-6)
+    np.testing.assert_allclose(pose_to_matrix(mid)[:3, :3], pose_to_matrix(p0)[:3, :3], atol=1e-6)
+    assert 0.02 < np.linalg.norm(moved) <= np.hypot(0.05, 0.02) * (t1 - t0) + 1e-9
+    np.testing.assert_allclose(pose_to_matrix(p1)[:3, :3], pose_to_matrix(p0)[:3, :3], atol=3e-3)
+
+
+def test_servol_reaches_the_pose(session: tuple[dict[str, Any], FakeURController]) -> None:
+    out, _ = session
+    goal, reached = out["servol"]
+    np.testing.assert_allclose(reached[:3], goal[:3], atol=1e-3)
 
 
 def test_unimplemented_command_fails_visibly(session: tuple[dict[str, Any], FakeURController]) -> None:
