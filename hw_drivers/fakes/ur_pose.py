@@ -30,16 +30,18 @@ def rotvec_to_matrix(rv: npt.ArrayLike) -> FloatArray:
 def matrix_to_rotvec(R: npt.ArrayLike) -> FloatArray:
     """The rotation vector (3,) of rotation matrix ``R``, angle in [0, pi]."""
     m = np.asarray(R, dtype=np.float64)
-    cos = float(np.clip((np.trace(m) - 1.0) / 2.0, -1.0, 1.0))
-    angle = float(np.arccos(cos))
     axis_sin = np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]]) / 2.0
+    # atan2 of (sin, cos) keeps full precision near 0 and pi, where arccos(cos) loses half the digits
+    angle = float(np.arctan2(np.linalg.norm(axis_sin), (np.trace(m) - 1.0) / 2.0))
     if angle < 1e-6:
         return axis_sin  # sin(angle) ~ angle
     if np.pi - angle > 1e-4:
         scaled: FloatArray = axis_sin * (angle / np.sin(angle))
         return scaled
-    # near pi the antisymmetric part vanishes: take the axis from the symmetric part (R + I) / 2 = k k^T
-    sym = (m + np.eye(3)) / 2.0
+    # near pi the antisymmetric part vanishes: take the axis from the symmetric part,
+    # (R + R^T) / 2 = cos(angle) I + (1 - cos(angle)) k k^T
+    cos = np.cos(angle)
+    sym = ((m + m.T) / 2.0 - cos * np.eye(3)) / (1.0 - cos)
     i = int(np.argmax(np.diag(sym)))
     axis = sym[:, i] / np.sqrt(max(sym[i, i], 1e-300))
     if np.dot(axis_sin, axis) < 0:
