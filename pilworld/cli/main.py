@@ -1,13 +1,20 @@
 """``pilworld`` entry point: parses the command line and turns user errors into one clear line.
 
 Each command lives in its own module exposing ``register(subparsers)``; the parser it adds carries a
-``handler(args) -> int`` default. User errors (bad files, bad shapes, invalid configs) print
-``pilworld: error: …`` and exit 2; ``--debug`` shows the traceback instead.
+``handler(args) -> int`` default. Errors are one line on stderr, ``pilworld: error: …``, never a
+traceback (``--debug`` or ``PILWORLD_DEBUG=1`` shows it instead):
+
+* exit 2 — the user's input is wrong (bad files, bad shapes, invalid configs, unknown names);
+* exit 1 — a run failed on something outside it: a policy server (unreachable, handshake failed,
+  timeout, server error, connection closed, invalid actions or reply — :class:`PolicyError`, the line
+  names the checkpoint and the kind) or a hardware run with no operator at a terminal
+  (:class:`OperatorUnavailableError`). What a run stored before the failure stays; rerunning resumes.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -58,16 +65,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = list(argv) if argv is not None else sys.argv[1:]  # for commands that re-launch themselves
+    from hw_drivers.errors import RobotError
+    from pilworld.paired.operator import OperatorUnavailableError
+    from pilworld.policies.base import PolicyError
+
+    debug = bool(args.debug) or os.environ.get("PILWORLD_DEBUG", "").strip() not in ("", "0")
     try:
         return int(args.handler(args))
-    except (ValueError, FileNotFoundError, OSError) as err:
-        if args.debug:
+    # Run failures, exit 1 — a policy, a missing operator, or the rig (a stale observation, a protective stop:
+    # the drivers have already stopped the arms). Caught before ValueError/OSError, which are bad input.
+    except (PolicyError, OperatorUnavailableError, RobotError) as err:
+        if debug:
             raise
-        print(f"pilworld: error: {err}", file=sys.stderr)
+        print(f"pilworld: error: {_one_line(err)}", file=sys.stderr)
+        return 1
+    except (ValueError, FileNotFoundError, OSError) as err:
+        if debug:
+            raise
+        print(f"pilworld: error: {_one_line(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("pilworld: interrupted", file=sys.stderr)
         return 130
+
+
+def _one_line(err: BaseException) -> str:
+    return " ".join(str(err).split()) or type(err).__name__
 
 
 if __name__ == "__main__":  # pragma: no cover - python -m pilworld.cli.main

@@ -44,7 +44,19 @@ def register(sub: Any) -> None:
     r.add_argument("--rounds", type=int, default=5, help="closed-loop rounds per subtask, R (default 5)")
     r.add_argument("--video-mode", default="lossless", choices=["lossless", "h264", "av1"])
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+    r.add_argument(
+        "--unattended",
+        action="store_true",
+        help="fake rig only: nobody at the rig; the simulator lays out each scene and its checker judges "
+        "(refused on real hardware; a hardware run otherwise needs an operator at a terminal)",
+    )
     r.set_defaults(handler=_run)
+    r.epilog = (
+        "Exit status: 0 done; 1 a policy server failed (unreachable, handshake failed, timeout, server error, "
+        "connection closed, invalid actions/reply) or a hardware run has no operator at a terminal; 2 bad "
+        "arguments. Stored branches stay and rerunning the same command resumes. Timeouts: "
+        "PILWORLD_POLICY_CONNECT_TIMEOUT / PILWORLD_POLICY_REPLY_TIMEOUT (seconds, default 10 / 30)."
+    )
 
     s = cmds.add_parser(
         "record-starts",
@@ -62,7 +74,19 @@ def register(sub: Any) -> None:
     s.add_argument("--seed", type=int, default=0, help="layout seed of the first starts (default 0)")
     s.add_argument("--rounds", type=int, default=5, help="closed-loop rounds the starts are meant for (default 5)")
     s.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+    s.add_argument(
+        "--unattended",
+        action="store_true",
+        help="fake rig only: the simulator lays out each scene, nobody is asked (refused on real hardware)",
+    )
     s.set_defaults(handler=_record_starts)
+
+
+def _operator(args: argparse.Namespace) -> Any:
+    """``--unattended``: nobody answers (the station refuses it on real hardware); else the terminal."""
+    from pilworld.paired.operator import UnattendedOperator
+
+    return UnattendedOperator() if args.unattended else None
 
 
 def _record_starts(args: argparse.Namespace) -> int:
@@ -79,6 +103,7 @@ def _record_starts(args: argparse.Namespace) -> int:
         seed=args.seed,
         spec=ChunkSpec(rounds=args.rounds),
         progress=not args.json,
+        operator=_operator(args),
     )
     print(f"record-starts: {summary['starts_recorded']} of {summary['starts_planned']} starts recorded in {args.out}")
     if args.json:
@@ -107,7 +132,7 @@ def _run(args: argparse.Namespace) -> int:
         video_mode=args.video_mode,
         spec=ChunkSpec(rounds=args.rounds),
     )
-    summary = paired_run(cfg, progress=not args.json)
+    summary = paired_run(cfg, progress=not args.json, operator=_operator(args))
     ds = summary["dataset"]
     origins = ", ".join(f"{o} {d['episodes']}" for o, d in ds["by_origin"].items())
     print(

@@ -3,10 +3,16 @@
 :class:`ConsoleOperator` asks on the terminal; tests pass scripted answers through ``ask``. The verdict
 is stored as a ``human`` judge (``judge_id`` "operator"); "skip" leaves the episode to the annotation
 app (issue #10) and records nothing.
+
+Without a terminal (a script, CI, ``</dev/null``) nobody can answer: :meth:`ConsoleOperator.check_available`
+raises :class:`OperatorUnavailableError` before the rig moves, and an answer that never comes (stdin
+closed mid-run) raises it too instead of an ``EOFError``. :class:`UnattendedOperator` is the explicit
+alternative on the fake rig only, where the simulator lays out each scene and its checker judges.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
@@ -16,6 +22,10 @@ OPERATOR_JUDGE = "operator"
 YES = ("y", "yes", "s", "success")
 NO = ("n", "no", "f", "fail", "failure")
 SKIP = ("", "skip", "?")
+
+
+class OperatorUnavailableError(RuntimeError):
+    """A hardware run needs a person at a terminal and there is none (stdin is not a terminal, or closed)."""
 
 
 @runtime_checkable
@@ -45,18 +55,35 @@ class ConsoleOperator:
         self.judge_outcomes = judge_outcomes
         self.max_attempts = max_attempts
 
+    def check_available(self, rig: str) -> None:
+        """Raise :class:`OperatorUnavailableError` when prompts would go to no terminal (before any motion)."""
+        if self.ask is input and not _stdin_is_a_terminal():
+            raise OperatorUnavailableError(
+                f"rig {rig}: a hardware run needs an operator at a terminal to set up each scene and judge it, "
+                "and stdin is not a terminal; run it from a terminal (or, on the fake rig only, pass --unattended)"
+            )
+
+    def _ask(self, question: str) -> str:
+        try:
+            return self.ask(question)
+        except EOFError:
+            raise OperatorUnavailableError(
+                "the operator's terminal closed (end of input) while the rig waited for an answer; "
+                "branches stored so far stay, rerun the same command to resume"
+            ) from None
+
     def set_up(self, subtask: Subtask, checkpoint: str) -> None:
         self.tell(
             f"\n[{checkpoint}] {subtask.task} subtask {subtask.index} (layout seed {subtask.seed}): "
             f"set up the scene for “{subtask.instruction}” with the subtasks before it done."
         )
-        self.ask("Press Enter when the scene is ready and the arms' path is clear (Ctrl-C to stop) ")
+        self._ask("Press Enter when the scene is ready and the arms' path is clear (Ctrl-C to stop) ")
 
     def judge(self, subtask: Subtask, checkpoint: str) -> bool | None:
         if not self.judge_outcomes:
             return None
         for _ in range(self.max_attempts):
-            answer = self.ask(f"Did {subtask.task} subtask {subtask.index} succeed? [y]es / [n]o / Enter: skip ")
+            answer = self._ask(f"Did {subtask.task} subtask {subtask.index} succeed? [y]es / [n]o / Enter: skip ")
             a = answer.strip().lower()
             if a in YES:
                 return True
@@ -66,3 +93,22 @@ class ConsoleOperator:
                 return None
             self.tell(f"Please answer y, n, or press Enter to skip (got {answer!r}).")
         raise ValueError(f"operator: no valid answer after {self.max_attempts} attempts")
+
+
+class UnattendedOperator:
+    """Nobody at the rig: the fake rig's simulator lays out each scene (``FakeRig.reset``) and its
+    privileged checker judges; no ``operator`` verdict is recorded. Refused on real hardware
+    (:class:`~pilworld.paired.stations.HardwareStation`), where nobody would clear the table."""
+
+    def set_up(self, subtask: Subtask, checkpoint: str) -> None:
+        """The scene is already laid out by the fake rig's simulator."""
+
+    def judge(self, subtask: Subtask, checkpoint: str) -> bool | None:
+        return None  # the simulator's checker (sim_checker) is the run's only judge
+
+
+def _stdin_is_a_terminal() -> bool:
+    try:
+        return sys.stdin is not None and sys.stdin.isatty()
+    except (AttributeError, ValueError):  # replaced by an object without isatty, or closed
+        return False

@@ -19,9 +19,10 @@ between runs).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,8 +39,10 @@ from pilworld.data.writer import EpisodeWriter
 from pilworld.envs import RobotEnv
 from pilworld.imagine.branch import branch_episode, run_imagined
 from pilworld.paired.operator import Operator
+from pilworld.paired.policy_metadata import honour_reset_poses, store_metadata
 from pilworld.paired.real_source import RealBranchSource
 from pilworld.paired.stations import open_station
+from pilworld.policies.base import Policy, PolicyError
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
 from pilworld.starts.sources import PAIRED_STARTS
@@ -258,6 +261,29 @@ def branch_record(pair_id: str, rollout: Rollout) -> dict[str, Any]:
     }
 
 
+RESUME_HINT = "branches already stored stay; rerun the same command to resume"
+
+
+@contextlib.contextmanager
+def _closing(policies: Iterable[Policy]) -> Iterator[None]:
+    """Close remote policies' connections when the run ends, however it ends."""
+    try:
+        yield
+    finally:
+        for policy in policies:
+            close = getattr(policy, "close", None)
+            if callable(close):
+                close()
+
+
+def connect_policy(checkpoint: str, rig: RigConfig, spec: ChunkSpec) -> Policy:
+    """``make_policy``, with a policy server that cannot be reached named by its checkpoint."""
+    try:
+        return make_policy(checkpoint, rig, spec)
+    except PolicyError as err:
+        raise err.in_context(checkpoint, "connecting", RESUME_HINT) from err
+
+
 def paired_run(
     cfg: PairedConfig,
     *,
@@ -293,16 +319,20 @@ def paired_run(
         raise ValueError(
             f"real_from: {cfg.real_from} lacks the real branch of {len(missing)} pair(s), e.g. {missing[0]}"
         )
+    # A hardware station checks its operator here (none at a terminal: a typed error), before any motion.
+    station_ = open_station(cfg.rig, tasks[0], operator)
     _check_config(root, cfg)  # claims the folder only now that every check passed
     gamma = ControlVideo.from_rig(rig, cfg.spec)
-    policies = {c: make_policy(c, rig, cfg.spec) for c in cfg.checkpoints}
+    policies = {c: connect_policy(c, rig, cfg.spec) for c in cfg.checkpoints}
+    store_metadata(root, policies)
     t_start = time.monotonic()
     records: list[dict[str, Any]] = []
     bar = tqdm(
         total=len(plan), initial=len(plan) - len(todo), desc="paired subtasks", unit="pair", disable=not progress
     )
     with (
-        open_station(cfg.rig, tasks[0], operator) as station,
+        _closing(policies.values()),
+        station_ as station,
         EpisodeWriter(root, store_spec) as writer,
         StartsWriter(
             root / PAIRED_STARTS,
@@ -313,6 +343,7 @@ def paired_run(
         ) as starts,
     ):
         robot = station.robot
+        honour_reset_poses(station, policies)
         for pair in todo:
             have = done.get(pair.pair_id, set())
             sub = pair.subtask
@@ -337,22 +368,26 @@ def paired_run(
                     if on_branch is not None:
                         on_branch(pair, origin)
                     continue
-                if origin == "imagined":
-                    rollout = run_imagined(
-                        model,
-                        gamma,
-                        cfg.spec,
-                        robot.spec,
-                        policy,
-                        start,
-                        seed=pair.seed,
-                        steps=cfg.steps,
-                        control_rate_hz=rig.control_rate_hz,
-                    )
-                else:
-                    policy.reset(seed=pair.seed)
-                    env = RobotEnv(robot, cfg.spec, pace=station.pace)  # a simulator may run ahead of real time
-                    rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
+                try:
+                    if origin == "imagined":
+                        rollout = run_imagined(
+                            model,
+                            gamma,
+                            cfg.spec,
+                            robot.spec,
+                            policy,
+                            start,
+                            seed=pair.seed,
+                            steps=cfg.steps,
+                            control_rate_hz=rig.control_rate_hz,
+                        )
+                    else:
+                        policy.reset(seed=pair.seed)
+                        env = RobotEnv(robot, cfg.spec, pace=station.pace)  # a simulator may run ahead of real time
+                        rollout = closed_loop(policy, env, sub.instruction, cfg.spec.rounds, start=start)
+                except PolicyError as err:  # the branch in flight is lost; every stored one stays
+                    where = f"{sub.task} subtask {sub.index}, layout seed {sub.seed}, {origin} branch"
+                    raise err.in_context(pair.checkpoint, where, RESUME_HINT) from err
                 ep = branch_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra)
                 index = writer.append(ep)
                 if origin == "real":

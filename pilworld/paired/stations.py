@@ -8,7 +8,13 @@ A station brings the robot to a subtask's start and says how the real branch end
   scene is laid out first, as a person would); the arms move to the start pose at a capped speed;
   H_h history frames and the start observation are captured from the cameras while the robot holds
   still; at the end the operator marks success or failure (a ``human`` judge, ``operator``) or leaves
-  it to the annotation app. On the fake rig the simulator's checker judges too.
+  it to the annotation app. On the fake rig the simulator's checker judges too. A checkpoint whose
+  server's metadata names a ``reset_pose`` starts from that pose instead (``reset_poses``).
+
+Without a terminal the console operator cannot answer: the station refuses to open
+(:class:`~pilworld.paired.operator.OperatorUnavailableError`) before anything moves. An
+:class:`~pilworld.paired.operator.UnattendedOperator` runs the fake rig with nobody there and is refused
+on real hardware.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ import numpy as np
 from hw_drivers.robot import Robot
 from pilworld.config.rig import RigConfig
 from pilworld.data.outcomes import Outcome
-from pilworld.paired.operator import OPERATOR_JUDGE, ConsoleOperator, Operator
+from pilworld.paired.operator import OPERATOR_JUDGE, ConsoleOperator, Operator, UnattendedOperator
 from pilworld.types import ChunkSpec, Observation, Start, Subtask
 
 SIM_JUDGE = "sim_checker"
@@ -110,6 +116,16 @@ class HardwareStation:
             raise ValueError(f"rig {self.rig.name!r} has no 'hardware:' section; use SimStation for a simulated rig")
         self.hw = self.rig.hardware
         self.operator = operator or ConsoleOperator()
+        if isinstance(self.operator, UnattendedOperator) and self.hw.fake is None:
+            raise ValueError(
+                f"--unattended: rig {self.rig.name!r} drives real hardware; an unattended run is only for the "
+                "fake rig (a 'hardware.fake' section), where the simulator lays out each scene and judges it"
+            )
+        check = getattr(self.operator, "check_available", None)
+        if callable(check):  # before the fakes start or a device connects: nothing has moved yet
+            check(self.rig.name)
+        # Per checkpoint: the pose its server's metadata asks to start from (pilworld.paired.policy_metadata).
+        self.reset_poses: dict[str, np.ndarray[Any, np.dtype[np.float64]]] = {}
         self.fake: Any = None
         self._robot: Any = None
         self._seed = seed
@@ -159,7 +175,8 @@ class HardwareStation:
         if self.fake is not None:  # the simulated scene stands in for the person setting it up
             self.fake.reset(subtask.task, subtask.seed, subtask.index)
         self.operator.set_up(subtask, checkpoint)
-        self._robot.move_to(self.start_pose(), speed=self.hw.start_speed)
+        pose = self.reset_poses.get(checkpoint)
+        self._robot.move_to(self.start_pose() if pose is None else pose, speed=self.hw.start_speed)
         # History: H_h frames at the policy's frame stride while the robot holds still at the start.
         period = spec.stride / self.rig.control_rate_hz
         frames: list[Observation] = []

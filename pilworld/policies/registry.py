@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 from pilworld.config.rig import RigConfig
 from pilworld.policies.base import Policy
 from pilworld.types import ChunkSpec
@@ -20,13 +22,48 @@ def default_checkpoint() -> str:
     return BEST_CHECKPOINT
 
 
+CONNECT_TIMEOUT_ENV = "PILWORLD_POLICY_CONNECT_TIMEOUT"
+REPLY_TIMEOUT_ENV = "PILWORLD_POLICY_REPLY_TIMEOUT"
+DEFAULT_CONNECT_TIMEOUT_S = 10.0
+DEFAULT_REPLY_TIMEOUT_S = 30.0
+
+
+def policy_timeouts() -> tuple[float, float]:
+    """Seconds an openpi server gets to connect (handshake and metadata) and to answer one request.
+
+    From ``PILWORLD_POLICY_CONNECT_TIMEOUT`` / ``PILWORLD_POLICY_REPLY_TIMEOUT`` when set (a slow model
+    on a shared GPU needs longer; tests need shorter), else 10 s and 30 s.
+    """
+    out = []
+    for env, default in (
+        (CONNECT_TIMEOUT_ENV, DEFAULT_CONNECT_TIMEOUT_S),
+        (REPLY_TIMEOUT_ENV, DEFAULT_REPLY_TIMEOUT_S),
+    ):
+        raw = os.environ.get(env, "").strip()
+        if not raw:
+            out.append(default)
+            continue
+        try:
+            value = float(raw)
+        except ValueError:
+            value = float("nan")
+        if not value > 0 or value == float("inf"):
+            raise ValueError(f"{env}: expected a positive number of seconds, got {raw!r}")
+        out.append(value)
+    return out[0], out[1]
+
+
 def make_policy(name: str, rig: RigConfig, spec: ChunkSpec | None = None) -> Policy:
     """``ws://host:port`` → an openpi websocket client; a scripted checkpoint name → that checkpoint."""
     spec = spec or ChunkSpec()
     if name.startswith(("ws://", "wss://")):
         from pilworld.policies.openpi.client import OpenPiClient
 
-        return OpenPiClient(name)  # any horizon >= K·Δ works; the closed loop checks it per chunk
+        connect_s, reply_s = policy_timeouts()
+        # Any horizon >= K·Δ works; checked at the client, so a short chunk is the policy's error, not the loop's.
+        return OpenPiClient(
+            name, connect_timeout=connect_s, reply_timeout=reply_s, min_horizon=spec.executed_steps, name=name
+        )
     from pilworld.policies.scripted import ScriptedPolicy
 
     if name not in policy_names():

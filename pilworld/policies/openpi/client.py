@@ -109,7 +109,8 @@ class OpenPiClient:
 
     ``image_size`` (int or (height, width)): what images are resized-with-padding to; by default the
     server's metadata ``image_size`` if it has one (our server does), else openpi's 224×224.
-    ``horizon`` / ``action_dim``: the chunk shape replies must have (``None`` horizon = any).
+    ``horizon`` / ``action_dim``: the chunk shape replies must have (``None`` horizon = any);
+    ``min_horizon``: the fewest steps a reply may have (the closed loop executes K·Δ of them).
     """
 
     def __init__(
@@ -121,6 +122,7 @@ class OpenPiClient:
         reply_timeout: float = 30.0,
         image_size: int | tuple[int, int] | None = None,
         horizon: int | None = None,
+        min_horizon: int | None = None,
         action_dim: int = 14,
         name: str | None = None,
         api_key: str | None = None,
@@ -130,12 +132,17 @@ class OpenPiClient:
                 raise ValueError(f"{field}: expected a positive number of seconds, got {value!r}")
         if horizon is not None and (isinstance(horizon, bool) or not isinstance(horizon, int) or horizon < 1):
             raise ValueError(f"horizon: expected a positive int or None, got {horizon!r}")
+        if min_horizon is not None and (
+            isinstance(min_horizon, bool) or not isinstance(min_horizon, int) or min_horizon < 1
+        ):
+            raise ValueError(f"min_horizon: expected a positive int or None, got {min_horizon!r}")
         if isinstance(action_dim, bool) or not isinstance(action_dim, int) or action_dim < 1:
             raise ValueError(f"action_dim: expected a positive int, got {action_dim!r}")
         self.url = websocket_url(url, port)
         self.connect_timeout = float(connect_timeout)
         self.reply_timeout = float(reply_timeout)
         self.horizon = horizon
+        self.min_horizon = min_horizon
         self.action_dim = action_dim
         self._name = name or f"openpi@{urlsplit(self.url).netloc}"
         self.timings: list[ChunkTiming] = []
@@ -176,8 +183,10 @@ class OpenPiClient:
             raise PolicyTimeoutError(self._name, "connect", self.connect_timeout, self.url) from None
         except websockets.InvalidURI as err:
             raise ValueError(f"url: {err}") from None
-        except (OSError, websockets.InvalidHandshake) as err:
-            raise PolicyConnectionError(self._name, self.url, f"failed: {err}") from None
+        except websockets.InvalidHandshake as err:  # something answered, but refused the websocket upgrade
+            raise PolicyConnectionError(self._name, self.url, f"failed: {err}", kind="handshake failed") from None
+        except OSError as err:  # nothing listening, no route, no such host
+            raise PolicyConnectionError(self._name, self.url, f"failed: {err}", kind="unreachable") from None
         self._ws = ws
         try:
             first = ws.recv(timeout=max(0.0, deadline - time.monotonic()))
@@ -187,7 +196,10 @@ class OpenPiClient:
         except websockets.ConnectionClosed as err:
             self._drop("it closed during the handshake")
             raise PolicyConnectionError(
-                self._name, self.url, f"closed before sending metadata ({_close_description(err)})"
+                self._name,
+                self.url,
+                f"closed before sending metadata ({_close_description(err)})",
+                kind="handshake failed",
             ) from None
         if isinstance(first, str):
             raise self._server_error(first)
@@ -195,10 +207,16 @@ class OpenPiClient:
             metadata = unpackb(first)
         except ValueError as err:
             self._drop("its metadata was undecodable")
-            raise PolicyError(self._name, f"undecodable metadata from {self.url}: {err}") from None
+            raise PolicyError(
+                self._name, f"undecodable metadata from {self.url}: {err}", kind="handshake failed"
+            ) from None
         if not isinstance(metadata, dict):
             self._drop("its metadata was not a map")
-            raise PolicyError(self._name, f"metadata from {self.url} is a {type(metadata).__name__}, expected a map")
+            raise PolicyError(
+                self._name,
+                f"metadata from {self.url} is a {type(metadata).__name__}, expected a map",
+                kind="handshake failed",
+            )
         return metadata
 
     def _drop(self, because: str) -> None:
@@ -269,7 +287,9 @@ class OpenPiClient:
         if not isinstance(reply, dict) or "actions" not in reply:
             keys = sorted(map(str, reply)) if isinstance(reply, dict) else type(reply).__name__
             raise PolicyError(self._name, f"invalid reply: expected a map with 'actions', got {keys}")
-        actions = validate_chunk(reply["actions"], self._name, dim=self.action_dim, horizon=self.horizon)
+        actions = validate_chunk(
+            reply["actions"], self._name, dim=self.action_dim, horizon=self.horizon, min_horizon=self.min_horizon
+        )
         timing = reply.get("server_timing")
         timing = timing if isinstance(timing, dict) else {}
         self.timings.append(

@@ -35,6 +35,29 @@ def test_metrics_json_has_the_acceptance_keys(demo_run: tuple[Path, dict[str, ob
     assert {"abs_delta_sr", "hfr", "pearson", "mmrv"} <= set(metrics["overall"])
 
 
+def test_metric_values_follow_from_the_stored_verdicts(demo_run: tuple[Path, dict[str, object], str]) -> None:
+    """The values, not only the keys: recomputed here from the outcomes table and the episodes."""
+    out, _, _ = demo_run
+    metrics = json.loads((out / "metrics.json").read_text())
+    store = EpisodeStore(out)
+    task_of = {i: json.loads(row["extra"])["sim_task"] for i, row in enumerate(store.episodes)}
+    verdicts = read_outcomes(out)
+    for task, m in metrics["tasks"].items():
+        assert m["n_subtasks"] == len(DEFAULT_CHECKPOINTS)  # one subtask per checkpoint
+        checker = [
+            float(o.success) for o in verdicts if o.judge_id == "sim_checker" and task_of[o.episode_index] == task
+        ]
+        assert len(checker) == len(DEFAULT_CHECKPOINTS)
+        assert m["sr_real_checker"] == pytest.approx(sum(checker) / len(checker))
+        for key in ("sr_real", "sr_imag", "hfr"):
+            assert m[key] is None or 0.0 <= m[key] <= 1.0, (task, key, m[key])
+        if m["sr_real"] is not None and m["sr_imag"] is not None:
+            assert m["abs_delta_sr"] == pytest.approx(abs(m["sr_imag"] - m["sr_real"]))
+    overall = metrics["overall"]
+    assert overall["abs_delta_sr"] is None or 0.0 <= overall["abs_delta_sr"] <= 1.0
+    assert overall["pearson"] is None or -1.0 <= overall["pearson"] <= 1.0
+
+
 def test_every_episode_is_judged_and_both_origins_are_stored(demo_run: tuple[Path, dict[str, object], str]) -> None:
     out, summary, _ = demo_run
     store = EpisodeStore(out)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from pilworld.data.reader import EpisodeStore
 from tests.pilworld.paired.digest import dataset_digest
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
@@ -40,6 +42,11 @@ def test_sigkill_midway_then_rerun_equals_uninterrupted(tmp_path: Path) -> None:
     assert proc.poll() is None, "the run finished before it could be killed"
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=30)
+    # What the killed run had committed: the rerun must redo exactly the rest, not everything.
+    stored = EpisodeStore(out).num_episodes
+    total = EpisodeStore(ref).num_episodes
+    assert 0 < stored < total, (stored, total)
     done = subprocess.run(_cmd(out), check=True, env=env, capture_output=True, text=True, timeout=600)
-    assert '"branches_run": ' in done.stdout
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    assert summary["branches_run"] == total - stored, (summary["branches_run"], total, stored)
     assert dataset_digest(out) == dataset_digest(ref)
