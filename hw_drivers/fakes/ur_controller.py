@@ -186,6 +186,9 @@ class FakeURController:
         self._velocity: NDArray[np.float64] | None = None  # speedJ joint velocity, or speedL TCP twist …
         self._cartesian = False  # … when this is set: [vx, vy, vz] m/s, [wx, wy, wz] rad/s in the base frame
         self._line: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None  # moveL
+        # ur_rtde re-uploads the script right after stopScript (255) without clearing the register; a real
+        # controller has consumed the 255 long before the new program starts, a loaded fake may not have
+        self._stale_stop = False
         self._path: list[Waypoint] = []  # the movej/movel lines of the uploaded program (command 45)
         self._queue: list[Waypoint] = []  # waypoints of a running path still to go
         self._path_index = 0
@@ -355,6 +358,10 @@ class FakeURController:
         if self._blocking:
             return  # a blocking movej/movel: the script does not read commands until it returns
         cmd = self.in_int[0]
+        if self._stale_stop:
+            if cmd == 255:
+                return  # the previous program's stopScript, still in the register: not for this program
+            self._stale_stop = False
         if cmd != 0 and cmd not in IMPLEMENTED:
             self._fail(f"{describe(cmd)} is not emulated by the fake controller")
             return
@@ -530,6 +537,7 @@ class FakeURController:
             self._velocity, self._line, self.last_error, self._queue = None, None, None, []
             self._async = False
             self._async_progress(-1)  # reset_async_progress()
+            self._stale_stop = self.in_int[0] == 255
             self.tcp = np.eye(4)  # the uploaded script starts with the installation's TCP (the flange here)
             self._hold()
             self.out_int[0] = 1  # signal_ready()
