@@ -9,10 +9,12 @@ Three TCP servers on one loopback address, as on a real controller:
 * dashboard (29999): the line protocol, answering the strings ur_rtde compares against.
 * script (30003): accepts the uploaded ``rtde_control`` program and *emulates* it rather than interpreting
   URScript: a 500 Hz controller thread plays the script's main loop on the RTDE registers
-  (``input_int_register_0`` = command, ``output_int_register_0`` 1 = ready / 2 = done). Emulated: servoJ (11,
-  real-time: processed and ready again), moveJ (1, blocking unless async), servoStop (16), speedStop (15),
-  stopJ/stopL (34/33), setWatchdog (35, action "stop"), triggerProtectiveStop (31), stopScript (255); any
-  other command is acknowledged as done without effect.
+  (``input_int_register_0`` = command, ``output_int_register_0`` 1 = ready / 2 = done). The emulated
+  command ids are :data:`~hw_drivers.fakes.ur_commands.IMPLEMENTED` (moveJ/moveL and their IK/FK variants,
+  speedJ, servoJ, the stops, setTcp and the kinematics getters, computed with :mod:`pilworld.kinematics`
+  for the ``ur5e``); any other id stops the program as a URScript runtime error would (``last_error`` says
+  which), so the client's call returns False or raises instead of succeeding silently.
+  ``timestamp`` is the simulated clock: control cycles x 2 ms.
 
 The arm is the ``side`` arm of a :class:`~hw_drivers.fakes.backend.RigBackend`: ``actual_q``/``actual_qd`` are
 read from it and servoJ/moveJ targets written to it. Faults (:class:`~hw_drivers.fakes.faults.FaultSwitch`):
@@ -33,6 +35,7 @@ The ur_rtde constructors hold the GIL, so the client must never run in the proce
 from __future__ import annotations
 
 import contextlib
+import re
 import select
 import socket
 import struct
@@ -45,6 +48,10 @@ from numpy.typing import NDArray
 
 from hw_drivers.fakes.backend import RigBackend, check_side
 from hw_drivers.fakes.faults import FaultSwitch
+from hw_drivers.fakes.ur_commands import IMPLEMENTED, REALTIME, describe
+from hw_drivers.fakes.ur_pose import interpolate, matrix_to_pose, pose_to_matrix, rotvec_to_matrix
+from pilworld.kinematics.fk import fk, fk_flange
+from pilworld.kinematics.ik import ik_nearest
 
 RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT = 30004, 29999, 30003
 CONTROLLER_VERSION = (5, 11, 1, 108318)
@@ -62,7 +69,6 @@ SAFETY = {  # name -> (safety_mode, safety_status_bits, dashboard word)
     "emergency_stop": (7, (1 << 6) | (1 << 7) | (1 << 10), "ROBOT_EMERGENCY_STOP"),
 }
 ROBOT_MODE_NAMES = {POWER_OFF: "POWER_OFF", IDLE: "IDLE", RUNNING: "RUNNING"}
-REALTIME_CMDS = {6, 9, 10, 11, 24, 25, 26, 27, 38, 58, 66, 67, 68, 69, 70, 71}  # script: process, then ready
 STOP_CMDS = {15, 16, 33, 34}  # speedStop, servoStop, stopL, stopJ
 
 _FMT = {"VECTOR6D": "6d", "VECTOR3D": "3d", "DOUBLE": "d", "INT32": "i", "UINT32": "I", "UINT64": "Q"}
@@ -130,6 +136,21 @@ def _type_of(name: str, direction: str) -> str:
     return table.get(name, "NOT_FOUND")
 
 
+# A waypoint line ur_rtde's Path::toScriptCode injects into exec_move_path(): movej([q…],a=…,v=…,r=…)
+_PATH_LINE = re.compile(r"^\s*(movej|movel)\((p?)\[([^\]]*)\],a=([^,]+),v=([^,]+),r=([^)]+)\)\s*$")
+Waypoint = tuple[str, bool, NDArray[np.float64], float]  # move, is a pose, target, speed
+
+
+def parse_path(script: str) -> list[Waypoint]:
+    """The waypoints of an uploaded program's movej/movel lines; blend radius and acceleration are not used."""
+    path: list[Waypoint] = []
+    for line in script.splitlines():
+        if (m := _PATH_LINE.match(line)) is not None:
+            target = np.array([float(v) for v in m.group(3).split(",")])
+            path.append((m.group(1), m.group(2) == "p", target, float(m.group(5))))
+    return path
+
+
 def _frame(msg_type: int, payload: bytes = b"") -> bytes:
     return struct.pack(">HB", 3 + len(payload), msg_type) + payload
 
@@ -147,7 +168,6 @@ class FakeURController:
         self._threads: list[threading.Thread] = []
         self._servers: list[socket.socket] = []
         self._clients: set[socket.socket] = set()
-        self._t0 = time.monotonic()
         self.in_int, self.in_double = [0] * 48, [0.0] * 48
         self.out_int, self.out_double = [0] * 48, [0.0] * 48
         self.runtime_state, self.robot_mode, self.safety = STOPPED, RUNNING, "normal"
@@ -159,6 +179,22 @@ class FakeURController:
         self._watchdog_s: float | None = None
         self._last_kick = 0.0
         self._program: str | None = None
+        self._body = ""  # the uploaded program's text (inside its top-level def)
+        self.dh = "ur5e"  # the rig's arms
+        self.tcp = np.eye(4)  # T_flange_tcp, set by setTcp (29)
+        self.ticks = 0  # control cycles run: the simulated clock (timestamp = ticks * TICK_S)
+        self._velocity: NDArray[np.float64] | None = None  # speedJ joint velocity, or speedL TCP twist …
+        self._cartesian = False  # … when this is set: [vx, vy, vz] m/s, [wx, wy, wz] rad/s in the base frame
+        self._line: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None  # moveL
+        # ur_rtde re-uploads the script right after stopScript (255) without clearing the register; a real
+        # controller has consumed the 255 long before the new program starts, a loaded fake may not have
+        self._stale_stop = False
+        self._path: list[Waypoint] = []  # the movej/movel lines of the uploaded program (command 45)
+        self._queue: list[Waypoint] = []  # waypoints of a running path still to go
+        self._path_index = 0
+        self._async = False
+        self._async_writes = self._async_op = 0
+        self.last_error: str | None = None  # why the emulated program stopped, as a runtime error would say
 
     # -- lifecycle
 
@@ -256,6 +292,7 @@ class FakeURController:
             if self.faults.active("stall"):
                 continue
             with self._lock:
+                self.ticks += 1
                 self._safety_tick()
                 if self.runtime_state == PLAYING:
                     self._script_tick()
@@ -278,6 +315,7 @@ class FakeURController:
     def _halt(self) -> None:
         """Stop the program and hold the arm where it is."""
         self.runtime_state, self.servoing, self._blocking, self._goal = STOPPED, False, False, None
+        self._velocity, self._line, self._queue = None, None, []
         self._watchdog_s = None
         self._hold()
 
@@ -285,13 +323,49 @@ class FakeURController:
         self._setpoint = self.backend.arm_q(self.side)
         self.backend.set_arm_target(self.side, self._setpoint)
 
+    def _step_speed(self, v: NDArray[np.float64]) -> None:
+        """One cycle of speedJ (joint velocity) or speedL (TCP twist, joints by IK)."""
+        if not self._cartesian:
+            self._setpoint = self._setpoint + v * TICK_S
+        else:
+            T = fk(self._setpoint, self.dh, self.tcp)
+            T[:3, 3] += v[:3] * TICK_S
+            T[:3, :3] = rotvec_to_matrix(v[3:] * TICK_S) @ T[:3, :3]
+            q = ik_nearest(T, self.dh, self._setpoint, self.tcp)
+            if q is None:
+                self._fail("speedL: the motion leaves the workspace (no inverse kinematics solution)")
+                return
+            self._setpoint = q
+        self.backend.set_arm_target(self.side, self._setpoint)
+
+    def _fail(self, why: str) -> None:
+        """A URScript runtime error: the program stops, so the client's call returns False / raises."""
+        self.last_error = why
+        self._halt()
+
     def _script_tick(self) -> None:
+        if self._velocity is not None:
+            self._step_speed(self._velocity)
+        if self._line is not None:
+            self._step_line()
         if self._goal is not None:
             self._step_move()
+        if self._goal is None and self._line is None and self._queue:
+            self._next_waypoint()
+        if self._async and self._goal is None and self._line is None and not self._queue:
+            self._async = False
+            self._async_progress(-1)
         if self._blocking:
-            return  # a blocking movej: the script does not read commands until it returns
+            return  # a blocking movej/movel: the script does not read commands until it returns
         cmd = self.in_int[0]
-        if cmd in REALTIME_CMDS:
+        if self._stale_stop:
+            if cmd == 255:
+                return  # the previous program's stopScript, still in the register: not for this program
+            self._stale_stop = False
+        if cmd != 0 and cmd not in IMPLEMENTED:
+            self._fail(f"{describe(cmd)} is not emulated by the fake controller")
+            return
+        if cmd in REALTIME:
             self._process(cmd)
             self.out_int[0] = 1
         elif cmd == 0:
@@ -304,18 +378,93 @@ class FakeURController:
                 self.out_int[0] = 2
 
     def _process(self, cmd: int) -> None:
+        try:
+            self._process_cmd(cmd)
+        except ValueError as e:  # bad arguments (NaN pose, no IK solution): URScript raises, the program stops
+            self._fail(f"{describe(cmd)}: {e}")
+
+    def _ik(self, pose: NDArray[np.float64], seed: NDArray[np.float64]) -> NDArray[np.float64]:
+        q = ik_nearest(pose_to_matrix(pose), self.dh, seed, self.tcp)
+        if q is None:
+            raise ValueError(f"no inverse kinematics solution for pose {np.round(pose, 4).tolist()}")
+        return q
+
+    def _start_movej(self, q: NDArray[np.float64], speed: float, blocking: bool) -> None:
+        self.servoing, self._goal, self._velocity, self._line = False, q, None, None
+        self._speed = max(1e-3, speed)
+        self._setpoint = self.backend.arm_q(self.side)
+        self._blocking = blocking
+        if not blocking:
+            self._async = True
+            self._async_progress(0)
+
+    def _start_movel(self, goal: NDArray[np.float64], speed: float) -> None:
+        """A straight TCP line from where the arm is to ``goal`` (4x4) at ``speed`` [m/s]."""
+        self._setpoint = self.backend.arm_q(self.side)
+        self._line = (fk(self._setpoint, self.dh, self.tcp), goal, max(1e-4, speed), 0.0)
+
+    def _async_progress(self, value: int) -> None:
+        """write_async_progress_register(): op id bits 24-30, write count 16-23, bit 15 running, progress 0-14."""
+        self._async_writes = (self._async_writes + 1) % 128
+        if value == 0:
+            self._async_op = (self._async_op + 1) % 128
+        reg = self._async_writes * 65536 + self._async_op * 16777216
+        self.out_int[2] = reg + min(value, 32767) + 32768 if value >= 0 else reg
+
+    def _next_waypoint(self) -> None:
+        move, is_pose, target, speed = self._queue.pop(0)
+        if self._async:
+            self._async_progress(self._path_index)
+        self._path_index += 1
+        if move == "movej":
+            q = self._ik(target, self._setpoint) if is_pose else target
+            self._goal, self._speed = q, max(1e-3, speed)
+            self._setpoint = self.backend.arm_q(self.side)
+        else:
+            self._start_movel(pose_to_matrix(target) if is_pose else fk(target, self.dh, self.tcp), speed)
+
+    def _process_cmd(self, cmd: int) -> None:
         q = np.array(self.in_double[:6])
-        if cmd == 11:  # servoJ: the servo thread tracks the latest target
-            self.servoing, self._goal = True, None
+        blocking = self.in_int[1] == 0
+        if cmd in (29, 40, 43, 44, 46, 30, 58):
+            self._query(cmd, q)
+        elif cmd == 2:  # moveJ_IK(pose, speed, acceleration, async)
+            self._start_movej(self._ik(q, self._setpoint), self.in_double[6], blocking)
+        elif cmd in (3, 4):  # moveL(pose, …) / moveL_FK(q, …): a straight TCP line, joints through IK
+            goal = pose_to_matrix(q) if cmd == 3 else fk(q, self.dh, self.tcp)
+            self._start_movej(self.backend.arm_q(self.side), self.in_double[6], blocking)
+            self._goal = None
+            self._start_movel(goal, self.in_double[6])
+        elif cmd == 45:  # moveJ/moveL(path): the waypoints were injected into the re-uploaded program
+            if not self._path:
+                raise ValueError("the uploaded program has no movej/movel path")
+            self._start_movej(self.backend.arm_q(self.side), 1.0, blocking)
+            self._goal, self._queue, self._path_index = None, list(self._path), 0
+        elif cmd in (9, 10):  # speedJ(qd, …) / speedL(xd, …): a velocity until speedStop / another command
+            self.servoing, self._goal, self._line, self._queue = False, None, None, []
+            self._velocity, self._cartesian = q, cmd == 10
+        elif cmd == 24:  # servoL(pose, …): servoJ to the IK solution nearest the setpoint (real-time)
+            self.servoing, self._goal, self._velocity, self._line, self._queue = True, None, None, None, []
+            self._setpoint = self._ik(q, self._setpoint)
+            self.backend.set_arm_target(self.side, self._setpoint)
+        elif cmd == 47:  # isSteady → output_int_register_1
+            moving = self._goal is not None or self._line is not None or self._velocity is not None or self._queue
+            still = float(np.max(np.abs(self.backend.arm_qd(self.side)))) < 1e-4
+            self.out_int[1] = int(still and not moving)
+        elif cmd in (60, 61):  # getInverseKinematicsHasSolution(x[, qnear, …]) → output_int_register_1
+            seed = self.backend.arm_q(self.side) if cmd == 60 else np.array(self.in_double[6:12])
+            self.out_int[1] = int(ik_nearest(pose_to_matrix(q), self.dh, seed, self.tcp) is not None)
+        elif cmd == 11:  # servoJ: the servo thread tracks the latest target
+            self.servoing, self._goal, self._velocity, self._line, self._queue = True, None, None, None, []
             self._setpoint = q
             self.backend.set_arm_target(self.side, q)
         elif cmd == 1:  # moveJ(q, speed, acceleration, async)
-            self.servoing, self._goal = False, q
-            self._speed = max(1e-3, self.in_double[6])
-            self._setpoint = self.backend.arm_q(self.side)
-            self._blocking = self.in_int[1] == 0
+            self._start_movej(q, self.in_double[6], blocking)
         elif cmd in STOP_CMDS:
-            self.servoing, self._goal = False, None
+            self.servoing, self._goal, self._velocity, self._line, self._queue = False, None, None, None, []
+            if self._async:
+                self._async = False
+                self._async_progress(-1)
             self._hold()
         elif cmd == 35:  # setWatchdog(min_frequency)
             self._watchdog_s = 1.0 / max(1e-3, self.in_double[0])
@@ -326,6 +475,43 @@ class FakeURController:
         elif cmd == 255:  # stopScript
             self._halt()
 
+    def _query(self, cmd: int, arg: NDArray[np.float64]) -> None:
+        """setTcp and the kinematics getters; results go to output_double_register_0…5."""
+        d = np.array(self.in_double[:14])
+        if cmd == 29:  # setTcp(pose)
+            self.tcp = pose_to_matrix(arg)
+            return
+        if cmd == 40:  # getTCPOffset
+            result = matrix_to_pose(self.tcp)
+        elif cmd == 43:  # getForwardKinematics(): the current joints with the active TCP
+            result = matrix_to_pose(fk(self.backend.arm_q(self.side), self.dh, self.tcp))
+        elif cmd == 44:  # getForwardKinematics(q, tcp_offset)
+            result = matrix_to_pose(fk(arg, self.dh, pose_to_matrix(d[6:12])))
+        elif cmd == 46:  # getInverseKinematics(x): the solution nearest the current joints
+            result = self._ik(arg, self.backend.arm_q(self.side))
+        elif cmd == 30:  # getInverseKinematics(x, qnear, max errors): nearest to qnear
+            result = self._ik(arg, d[6:12])
+        else:  # 58 getActualToolFlangePose
+            result = matrix_to_pose(fk_flange(self.backend.arm_q(self.side), self.dh))
+        self.out_double[:6] = [float(v) for v in result]
+
+    def _step_line(self) -> None:
+        """One cycle of moveL: advance along the straight line at the commanded speed [m/s], joints by IK."""
+        assert self._line is not None
+        start, goal, speed, s = self._line
+        length = float(np.linalg.norm(goal[:3, 3] - start[:3, 3]))
+        s = 1.0 if length < 1e-9 else min(1.0, s + speed * TICK_S / length)
+        q = ik_nearest(interpolate(start, goal, s), self.dh, self._setpoint, self.tcp)
+        if q is None:
+            self._fail("moveL: the straight line leaves the workspace (no inverse kinematics solution)")
+            return
+        self._setpoint = q
+        self.backend.set_arm_target(self.side, q)
+        self._line = None if s >= 1.0 else (start, goal, speed, s)
+        if self._line is None:
+            self._goal = q  # settle: done once the arm has reached the last point
+            self._speed = np.inf
+
     def _step_move(self) -> None:
         assert self._goal is not None
         delta = self._goal - self._setpoint
@@ -335,18 +521,24 @@ class FakeURController:
         self.backend.set_arm_target(self.side, self._setpoint)
         if largest <= step and np.max(np.abs(self.backend.arm_q(self.side) - self._goal)) < 1e-3:
             self._goal = None
-            if self._blocking:
+            if self._blocking and not self._queue:
                 self._blocking = False
                 self.out_int[0] = 2
 
-    def _start_program(self, name: str) -> None:
+    def _start_program(self, name: str, body: str = "") -> None:
         with self._lock:
             if name != "rtde_control" or self.safety != "normal" or self.robot_mode != RUNNING:
                 return  # only ur_rtde's control script is emulated; a stopped robot cannot run programs
-            self._program = name
+            self._program, self._body = name, body
+            self._path = parse_path(body)
             self.runtime_state = PLAYING
             self._executing = self._blocking = self.servoing = False
             self._goal, self._watchdog_s = None, None
+            self._velocity, self._line, self.last_error, self._queue = None, None, None, []
+            self._async = False
+            self._async_progress(-1)  # reset_async_progress()
+            self._stale_stop = self.in_int[0] == 255
+            self.tcp = np.eye(4)  # the uploaded script starts with the installation's TCP (the flange here)
             self._hold()
             self.out_int[0] = 1  # signal_ready()
 
@@ -426,7 +618,7 @@ class FakeURController:
             safety_mode, safety_bits, _ = SAFETY[self.safety]
             powered = self.robot_mode in (IDLE, RUNNING)
             scalars: dict[str, float | int] = {
-                "timestamp": time.monotonic() - self._t0,
+                "timestamp": self.ticks * TICK_S,  # the simulated clock: frozen while stalled
                 "robot_mode": self.robot_mode,
                 "safety_mode": safety_mode,
                 "safety_status_bits": safety_bits,
@@ -435,10 +627,16 @@ class FakeURController:
                 "speed_scaling": 1.0,
                 "target_speed_fraction": 1.0,
             }
+            target = self._setpoint.copy()
+            tcp = self.tcp.copy()
             flat: list[float | int] = []
             for name, rtde_type in outputs:
-                if name in ("actual_q", "target_q"):
+                if name == "actual_q":
                     flat.extend(q.tolist())
+                elif name == "target_q":
+                    flat.extend(target.tolist())
+                elif name in ("actual_TCP_pose", "target_TCP_pose"):
+                    flat.extend(matrix_to_pose(fk(q if name[0] == "a" else target, self.dh, tcp)).tolist())
                 elif name in ("actual_qd", "target_qd"):
                     flat.extend(qd.tolist())
                 elif name == "joint_mode":
@@ -480,7 +678,7 @@ class FakeURController:
             if cmd == "play":
                 if self._program is None:
                     return "Failed to execute: play"
-                self._start_program(self._program)
+                self._start_program(self._program, self._body)
                 return "Starting program" if self.runtime_state == PLAYING else "Failed to execute: play"
             if cmd == "pause":
                 self._halt()
@@ -527,6 +725,7 @@ class FakeURController:
         """Collect top-level ``def name(): … end`` programs; a complete one starts (and replaces) the program."""
         pending = b""
         name: str | None = None
+        body: list[str] = []
         while self._running.is_set():
             if not select.select([conn], [], [], 0.1)[0]:
                 continue
@@ -538,7 +737,9 @@ class FakeURController:
             for raw in lines:
                 line = raw.decode(errors="replace").rstrip()
                 if line.startswith("def ") and line.endswith("():"):
-                    name = line[4:-3].strip()
+                    name, body = line[4:-3].strip(), []
                 elif line == "end" and name is not None:
-                    self._start_program(name)
+                    self._start_program(name, "\n".join(body))
                     name = None
+                elif name is not None:
+                    body.append(line)
