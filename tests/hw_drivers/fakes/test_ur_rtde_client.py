@@ -132,7 +132,9 @@ def test_movej_blocks_for_its_duration_on_the_sim_clock(session: tuple[dict[str,
     assert out["movej"] is True
     np.testing.assert_allclose(out["q_home"], Q_HOME, atol=1e-3)
     largest = float(np.max(np.abs(Q_HOME)))  # from q = 0 at 1 rad/s on the largest joint
-    assert largest * 0.95 < out["movej_sim_s"] < largest + 0.3
+    # Blocked for the move (lower bound); the upper bound only says it ended: a loaded machine makes the client
+    # notice the end later, while the simulated clock runs on.
+    assert largest * 0.95 < out["movej_sim_s"] < 2 * largest + 1.0
 
 
 def test_tcp_pose_readings_match_project_fk(session: tuple[dict[str, Any], FakeURController]) -> None:
