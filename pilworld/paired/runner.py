@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
@@ -48,7 +49,7 @@ from pilworld.policies.registry import make_policy
 from pilworld.rollout import Rollout, closed_loop
 from pilworld.starts.sources import PAIRED_STARTS
 from pilworld.starts.store import StartsWriter, start_id
-from pilworld.types import ChunkSpec, Subtask
+from pilworld.types import ChunkSpec, Start, Subtask
 from pilworld.world_model.base import WorldModel
 
 ORIGINS = ("imagined", "real")
@@ -143,16 +144,56 @@ def plan_subtasks(
     return plan
 
 
-def stored_branches(root: Path) -> dict[str, set[str]]:
-    """Pair id → origins already committed in the dataset at ``root``."""
+def stored_slots(root: Path) -> dict[tuple[str, str], int]:
+    """(pair id, origin) → episode index of every branch committed in the dataset at ``root``."""
     if not (root / "meta" / "info.json").is_file():
         return {}
-    done: dict[str, set[str]] = {}
-    for row in EpisodeStore(root).episodes:
+    slots: dict[tuple[str, str], int] = {}
+    for i, row in enumerate(EpisodeStore(root).episodes):
         extra = json.loads(row.get("extra") or "{}")
         if "pair" in extra:
-            done.setdefault(str(extra["pair"]), set()).add(str(row.get("origin")))
+            slots[(str(extra["pair"]), str(row.get("origin")))] = i
+    return slots
+
+
+def stored_branches(root: Path) -> dict[str, set[str]]:
+    """Pair id → origins already committed in the dataset at ``root``."""
+    done: dict[str, set[str]] = {}
+    for pair, origin in stored_slots(root):
+        done.setdefault(pair, set()).add(origin)
     return done
+
+
+def _set_up_start(
+    pair: PairedSubtask,
+    have: set[str],
+    starts: StartsWriter,
+    slots: dict[tuple[str, str], int],
+    redo: dict[tuple[str, str], int],
+) -> Start | None:
+    """On a rig whose scenes are set up by hand: the start a resumed pair must run from, or None for a new scene.
+
+    Both branches of a pair run from one start, and a set-up scene cannot be repeated. A pair whose
+    real branch is stored imagines from the stored start it ran from. A pair whose real branch is lost
+    runs again from a new scene, both branches (the stored imagined one is rewritten in its slot), and
+    ``have`` is emptied in place.
+    """
+    if not have:
+        return None
+    checkpoint = pair.checkpoint
+    if "real" in have and (start_id(pair.subtask), checkpoint) in starts.stored():
+        return starts.load(pair.subtask, checkpoint=checkpoint)
+    for origin in sorted(have):
+        redo.setdefault((pair.pair_id, origin), slots[(pair.pair_id, origin)])
+    lost = "real branch" if "real" not in have else "start"
+    print(
+        f"{pair.pair_id}: its {lost} is lost and a set-up scene cannot be repeated; both branches run again "
+        "from a new one",
+        file=sys.stderr,
+        flush=True,
+    )
+    have.clear()
+    return None
 
 
 # Settings that may differ on resume: more subtasks extend a run; a copied real branch equals a re-run one.
@@ -311,6 +352,7 @@ def paired_run(
     for t in tasks:
         spec_t = make_task(t)
         plan += plan_subtasks(t, cfg.subtasks, cfg.seed, cfg.checkpoints, spec_t.num_subtasks, spec_t.instruction)
+    slots = stored_slots(root)
     done = stored_branches(root)
     redo = damaged_branches(root)  # stored branches whose files were lost: run again into their old slots
     take_out(done, redo)
@@ -351,10 +393,9 @@ def paired_run(
         honour_reset_poses(station, policies)
         starts.redo(restart)
         for pair in todo:
-            have = done.get(pair.pair_id, set())
+            have = set(done.get(pair.pair_id, set()))
             sub = pair.subtask
             model, adapter = models[sub.task]
-            start = station.start(sub, pair.checkpoint, cfg.spec)
             policy = policies[pair.checkpoint]
             extra = {
                 "pair": pair.pair_id,
@@ -362,10 +403,24 @@ def paired_run(
                 "adapter": adapter or "",
                 "world_model": cfg.world_model or "packaged",
             }
-            if station.shared_starts:  # the same scene for every checkpoint: stored once
+            if not station.shared_starts and have == set(ORIGINS):
+                # Both branches stored, only their start's files damaged: no branch needs it again, and
+                # re-recording it would mean setting the scene up by hand for nothing.
+                print(
+                    f"{pair.pair_id}: its stored start is damaged; both branches are intact, so it is left as it is "
+                    "(`pilworld imagine` cannot rerun this pair)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                bar.update(1)
+                continue
+            start = None if station.shared_starts else _set_up_start(pair, have, starts, slots, redo)
+            fresh = start is None  # a new scene: stored with the first branch run from it
+            if start is None:
+                start = station.start(sub, pair.checkpoint, cfg.spec)
+            if station.shared_starts:  # the same scene for every checkpoint, laid out bit for bit: stored once
                 starts.add(start)
-            else:
-                starts.add(start, checkpoint=pair.checkpoint)
+                fresh = False
             for origin in station.order:
                 if origin in have:
                     continue
@@ -394,6 +449,9 @@ def paired_run(
                 except PolicyError as err:  # the branch in flight is lost; every stored one stays
                     where = f"{sub.task} subtask {sub.index}, layout seed {sub.seed}, {origin} branch"
                     raise err.in_context(pair.checkpoint, where, RESUME_HINT) from err
+                if fresh:  # after the branch ran (its first chunk's observation stays fresh), before it is stored
+                    starts.add(start, checkpoint=pair.checkpoint, replace=True)
+                    fresh = False
                 ep = branch_episode(rollout, checkpoint=pair.checkpoint, seed=pair.seed, extra=extra)
                 slot = redo.get((pair.pair_id, origin))
                 index = writer.append(ep) if slot is None else writer.replace(slot, ep)  # replace drops old verdicts
@@ -407,6 +465,8 @@ def paired_run(
                     fh.write(json.dumps(rec) + "\n")
                 if on_branch is not None:
                     on_branch(pair, origin)
+            if fresh:  # every branch was copied from another run (real_from): still keep the scene's start
+                starts.add(start, checkpoint=pair.checkpoint, replace=True)
             bar.update(1)
     bar.close()
     return _summary(root, plan, records, time.monotonic() - t_start)

@@ -172,32 +172,50 @@ class StartsWriter:
                 raise StartsError(f"{self.root}: holds starts recorded with other settings ({', '.join(diff)})")
         self._spec = spec
         self._writer: EpisodeWriter | None = None
-        self._have: set[tuple[str, str]] | None = None
+        self._index: dict[tuple[str, str], int] | None = None
         self._redo: dict[tuple[str, str], int] = {}  # damaged stored starts: rewritten in place by add()
 
-    def stored(self) -> set[tuple[str, str]]:
-        """(start id, checkpoint) of every start in the folder."""
-        if self._have is None:
-            self._have = set()
+    def _slots(self) -> dict[tuple[str, str], int]:
+        """(start id, checkpoint) → episode index of every start in the folder (read once, then kept up to date)."""
+        if self._index is None:
+            self._index = {}
             if (self.root / "meta" / "info.json").is_file():
-                for row in EpisodeStore(self.root).episodes:
+                for i, row in enumerate(EpisodeStore(self.root).episodes):
                     extra = json.loads(row.get("extra") or "{}")
                     if "start_id" in extra:
-                        self._have.add((str(extra["start_id"]), str(extra.get("start_checkpoint", ""))))
-        return self._have
+                        self._index[(str(extra["start_id"]), str(extra.get("start_checkpoint", "")))] = i
+        return self._index
+
+    def stored(self) -> set[tuple[str, str]]:
+        """(start id, checkpoint) of every intact start in the folder (those given to :meth:`redo` are not)."""
+        return set(self._slots()) - set(self._redo)
 
     def redo(self, slots: Mapping[tuple[str, str], int]) -> None:
         """Treat these stored starts ((start id, checkpoint) → episode index; damaged files) as not stored:
         ``add`` then rewrites each into its old episode slot."""
-        have = self.stored()
-        for key, index in slots.items():
-            have.discard(key)
-            self._redo[key] = index
+        self._slots()
+        self._redo.update(slots)
 
-    def add(self, start: Start, *, checkpoint: str = "") -> bool:
-        """Store ``start`` unless it is there already; True when it was written."""
+    def load(self, subtask: Subtask, *, checkpoint: str = "") -> Start:
+        """The stored start of ``subtask`` (and ``checkpoint``) as it was recorded, frames bit for bit."""
+        key = (start_id(subtask), checkpoint)
+        if key not in self.stored():
+            raise StartsError(
+                f"{self.root}: holds no intact start {key[0]}" + (f" for {checkpoint}" if checkpoint else "")
+            )
+        index = self._slots()[key]
+        ep = EpisodeStore(self.root).load(index)
+        return start_from_episode(ep, str(self.root), start_frame=None, history=0, fps=1.0, episode_index=index).start
+
+    def add(self, start: Start, *, checkpoint: str = "", replace: bool = False) -> bool:
+        """Store ``start`` unless it is there already; True when it was written.
+
+        ``replace=True`` rewrites a stored start of the same subtask and checkpoint in its slot: on a rig
+        whose scenes are set up by hand, a pair run again begins from a new scene, and the folder must hold
+        the start its branches ran from."""
         key = (start_id(start.subtask), checkpoint)
-        if key in self.stored():
+        slots = self._slots()
+        if key in self.stored() and not replace:
             return False
         if self._writer is None:
             self.root.mkdir(parents=True, exist_ok=True)
@@ -206,10 +224,11 @@ class StartsWriter:
         episode = start_episode(start, checkpoint=checkpoint)
         slot = self._redo.pop(key, None)
         if slot is None:
-            self._writer.append(episode)
+            slot = slots.get(key)
+        if slot is None:
+            slots[key] = self._writer.append(episode)
         else:
             self._writer.replace(slot, episode)
-        self.stored().add(key)
         return True
 
     def close(self) -> None:
