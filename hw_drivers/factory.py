@@ -70,6 +70,7 @@ def build_arms(rig: RigConfig, endpoints: FakeEndpoints | None = None) -> dict[s
             connect_timeout=cfg.connect_timeout,
             retries=cfg.retries,
             max_joint_speed=cfg.max_joint_speed,
+            stream_timeout=cfg.stream_timeout,
         )
     return arms
 

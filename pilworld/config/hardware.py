@@ -32,6 +32,8 @@ class URArmDriverConfig(StrictModel):
     # The servo loop's interpolation toward each target never exceeds this joint speed [rad/s]
     # (a UR e-Series joint's maximum is π; the safety filter already slows commands to it).
     max_joint_speed: float = Field(default=3.141592653589793, gt=0, le=3.2)
+    # RTDE silence [s] (no new controller timestamp) that faults the arm; a real controller sends every 2 ms.
+    stream_timeout: float = Field(default=0.5, gt=0, le=5)
 
 
 class DynamixelGripperConfig(StrictModel):
