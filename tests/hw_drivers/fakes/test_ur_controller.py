@@ -33,7 +33,12 @@ r = rtde_receive.RTDEReceiveInterface(host, 500.0)  # every default variable
 out["running"] = c.isProgramRunning(); out["db_running"] = db.running(); out["status"] = c.getRobotStatus()
 t = r.getTimestamp()  # the fake's simulated clock (control cycles x 2 ms), immune to a loaded machine
 out["movej"] = c.moveJ([0.4, 0.2, 0.0, 0.0, 0.0, 0.0], 0.8, 1.0)
-out["movej_sim_s"] = r.getTimestamp() - t
+# rtde_receive is a connection of its own: on a loaded machine its latest sample may predate the one that
+# told rtde_control the move ended. Read on until a sample from after the move arrives (bounded).
+t_wait = time.monotonic()
+while max(abs(a - b) for a, b in zip(r.getActualQ(), [0.4, 0.2, 0, 0, 0, 0])) >= 1e-3 and time.monotonic() - t_wait < 2:
+    time.sleep(0.002)
+out["movej_sim_s"] = r.getTimestamp() - t  # to the first sample at the target: the move's end
 out["q_after_movej"] = r.getActualQ()
 out["watchdog"] = c.setWatchdog(10.0)
 n, t = 0, time.monotonic()
