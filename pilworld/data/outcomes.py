@@ -36,6 +36,7 @@ import pyarrow.parquet as pq
 
 from pilworld.data import layout
 from pilworld.data.atomic import write_json, write_parquet
+from pilworld.data.backup import OUTCOMES_MANIFEST, back_up
 
 JudgeKind = Literal["sim_state", "vision", "human"]
 JUDGE_KINDS: tuple[str, ...] = ("sim_state", "vision", "human")
@@ -111,9 +112,6 @@ class Outcome:
         }
 
 
-OUTCOMES_MANIFEST = "meta/outcomes_manifest.json"  # size and sha256 of the table, for `pilworld data verify`
-
-
 def _write(root: Path, table: pa.Table) -> None:
     """Rewrite the table, then its manifest (under the lock). A writer killed between the two leaves a
     manifest one version behind, which verify reports; the next recorded verdict rewrites both."""
@@ -121,6 +119,7 @@ def _write(root: Path, table: pa.Table) -> None:
 
     write_parquet(root / layout.OUTCOMES, table)
     write_json(root / OUTCOMES_MANIFEST, meta_manifest_text(root, [root / layout.OUTCOMES]))
+    back_up(root, [layout.OUTCOMES, OUTCOMES_MANIFEST])  # the manifest last: the backup is one whole generation
 
 
 def read_outcomes(root: str | Path) -> list[Outcome]:

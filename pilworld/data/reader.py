@@ -101,9 +101,11 @@ class EpisodeStore:
                 "(convert older datasets with `pilworld data convert`)"
             )
         pj = self.root / layout.PILWORLD
-        self.spec = spec_from_info(
-            self.info, json.loads(pj.read_text(encoding="utf-8")) if pj.is_file() else None, source=str(pj)
-        )
+        try:
+            own = json.loads(pj.read_text(encoding="utf-8")) if pj.is_file() else None
+        except (json.JSONDecodeError, UnicodeDecodeError) as err:
+            raise DatasetError(f"{pj}: not valid JSON: {err}") from None
+        self.spec = spec_from_info(self.info, own, source=str(pj))
         self.video_keys = [k for k, ft in self.info["features"].items() if ft.get("dtype") == "video"]
         # The dataset's own path templates (LeRobot's defaults match ours; other writers may differ).
         self.data_path = str(self.info.get("data_path") or layout.DATA_PATH)

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.data import layout
+from pilworld.data.backup import OUTCOMES_MANIFEST, backup_problems
 from pilworld.data.file_checks import mp4_problem, parquet_problem
 from pilworld.data.manifest import (
     MANIFEST_COLUMN,
@@ -35,11 +36,17 @@ from pilworld.data.manifest import (
     parse_manifest,
     read_meta_manifest,
 )
-from pilworld.data.outcomes import OUTCOMES_MANIFEST
 from pilworld.data.reader import DatasetError, EpisodeStore, read_info
 
 # JSON sidecars a run folder may hold, beside its dataset(s)
-RUN_JSON = ("paired_config.json", "imagine_config.json", "starts/starts.json")
+RUN_JSON = (
+    "paired_config.json",
+    "imagine_config.json",
+    "policy_metadata.json",
+    "paired_timings.jsonl",
+    "imagine_timings.jsonl",
+    "starts/starts.json",
+)
 STARTS_DIR = "starts"
 
 
@@ -154,6 +161,9 @@ def check_dataset(
         bad = check_file(root, rel, want, hash_files=hash_files)
         if bad is not None:
             problem(rel, bad.kind, bad.detail)
+    for bad in backup_problems(root, hash_files=hash_files):  # the second copy a resume restores tables from
+        check.files += 1
+        problem(bad.path, bad.kind, bad.detail)
     try:
         store = EpisodeStore(root)
         rows = store.episodes
@@ -233,9 +243,15 @@ def _sidecar_problems(root: Path, datasets: dict[str, DatasetCheck]) -> list[Pro
     out: list[Problem] = []
     for rel in RUN_JSON:
         path = root / rel
+        label, _, name = rel.rpartition("/")
+        own = datasets.get(label or ".")
+        if own is not None and any(p.path == name for p in own.problems):
+            continue  # already named by the dataset's own check (pilworld.data.backup)
         if path.is_file():
             try:
-                json.loads(path.read_text(encoding="utf-8"))
+                text = path.read_text(encoding="utf-8")
+                for line in text.splitlines() if path.suffix == ".jsonl" else [text]:
+                    json.loads(line)
             except (ValueError, UnicodeDecodeError) as err:
                 out.append(Problem(".", rel, "unreadable", f"is not valid JSON ({err})"))
     for label, check in datasets.items():

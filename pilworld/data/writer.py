@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from pilworld.data import layout
 from pilworld.data.atomic import atomic_write, is_temporary, write_json, write_parquet
+from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.manifest import MANIFEST_COLUMN, META_MANIFEST, manifest_json, meta_manifest_text
 from pilworld.data.reader import DatasetError, EpisodeStore
@@ -350,3 +351,6 @@ class EpisodeWriter:
         # after the commit: the metadata files that episodes' own manifests cannot cover
         meta_files = [*layout.episodes_meta_files(self.root), *(self.root / f for f in _META_FILES)]
         write_json(self.root / META_MANIFEST, meta_manifest_text(self.root, meta_files), durable=self.durable)
+        # a second copy of every table, the manifest last (pilworld.data.backup): a resume restores from it
+        rels = [p.relative_to(self.root).as_posix() for p in meta_files if p.is_file()]
+        back_up(self.root, [*rels, META_MANIFEST], durable=self.durable)

@@ -25,9 +25,10 @@ from typing import Any
 from tqdm import tqdm
 
 from pilworld.data.atomic import write_json
+from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.writer import EpisodeWriter
-from pilworld.paired.revalidate import damaged_branches, take_out
+from pilworld.paired.revalidate import damaged_branches, restore_run, take_out
 from pilworld.paired.runner import (
     PairedConfig,
     PairedSubtask,
@@ -183,6 +184,7 @@ def _check_config(root: Path, cfg: ImagineConfig, *, write: bool) -> None:
     if write:
         root.mkdir(parents=True, exist_ok=True)
         write_json(path, want)
+        back_up(root, [CONFIG_FILE])
 
 
 def check_paired_source(cfg: ImagineConfig, source: StartsSource) -> None:
@@ -317,6 +319,7 @@ def imagine_run(
     from pilworld.paired.runner import load_model
 
     root = Path(cfg.out)
+    restore_run(root)  # a damaged table or setting of a stored run comes back from its backup first
     history = cfg.spec.history if cfg.spec is not None else ChunkSpec().history
     source = load_starts(cfg.starts, history=history, start_frame=cfg.start_frame)
     if not cfg.rig:
@@ -364,6 +367,7 @@ def imagine_run(
                 seconds.append(result.seconds)
                 with (root / TIMINGS_FILE).open("a") as fh:
                     fh.write(json.dumps(result.record) + "\n")
+                back_up(root, [TIMINGS_FILE])
                 if on_episode is not None:
                     on_episode(result.episode.extra["pair"])
                 bar.update(1)

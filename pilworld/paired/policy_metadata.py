@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pilworld.data.atomic import write_json
+from pilworld.data.backup import back_up
 from pilworld.policies.base import PolicyError
 from pilworld.types import ARM_LAYOUT, LEFT_ARM, RIGHT_ARM, STATE_DIM
 
@@ -73,6 +74,7 @@ def store_metadata(root: Path, policies: Mapping[str, object]) -> dict[str, Any]
             stored[checkpoint] = jsonable(metadata)
     if stored:
         write_json(path, stored)
+        back_up(root, [METADATA_FILE])
     return stored
 
 

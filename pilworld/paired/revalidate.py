@@ -6,7 +6,6 @@ so before it skips anything a resume runs the cheap check of :func:`pilworld.dat
 announced on stderr in one line, and run again into its old episode slot (:meth:`EpisodeWriter.replace`):
 every branch is seeded, so the redone episode is the one the interrupted run wrote, with the same length
 and index. A paired run's starts/ folder is checked the same way, and a damaged start recorded again.
-The damage the cheap check cannot see (bytes changed in place) is ``pilworld data verify``'s to find.
 """
 
 from __future__ import annotations
@@ -17,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from pilworld.data.backup import restore_tables
 from pilworld.data.reader import DatasetError, EpisodeStore
 from pilworld.data.verify import Problem, check_dataset
 
@@ -31,7 +31,7 @@ def _damaged(root: Path) -> list[tuple[int, dict[str, Any], Problem]]:
     """(index, episodes-table row, first problem) of each damaged episode of the dataset at ``root``."""
     if not (root / "meta" / "info.json").is_file():
         return []
-    check = check_dataset(root, hash_files=False)
+    check = check_dataset(root, hash_files=True)
     tables = check.table_problems()
     if tables:
         raise DatasetError(
@@ -41,6 +41,14 @@ def _damaged(root: Path) -> list[tuple[int, dict[str, Any], Problem]]:
     damaged = check.damaged_episodes()
     rows = EpisodeStore(root).episodes if damaged else []
     return [(index, rows[index], problem) for index, problem in sorted(damaged.items())]
+
+
+def restore_run(root: Path, *, say: Callable[[str], None] = _stderr) -> None:
+    """Put back the damaged tables of the run at ``root`` (its dataset, its starts/) from their backups,
+    one line each (:mod:`pilworld.data.backup`); before anything reads them."""
+    for folder in (root, root / "starts"):
+        if (folder / "meta").is_dir():
+            restore_tables(folder, say=say)
 
 
 def _extra(row: dict[str, Any]) -> dict[str, Any]:

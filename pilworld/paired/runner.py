@@ -34,6 +34,7 @@ from tqdm import tqdm
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.data.atomic import write_json
+from pilworld.data.backup import back_up
 from pilworld.data.outcomes import record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
@@ -42,7 +43,7 @@ from pilworld.imagine.branch import branch_episode, run_imagined
 from pilworld.paired.operator import Operator
 from pilworld.paired.policy_metadata import honour_reset_poses, store_metadata
 from pilworld.paired.real_source import RealBranchSource
-from pilworld.paired.revalidate import damaged_branches, damaged_starts, take_out
+from pilworld.paired.revalidate import damaged_branches, damaged_starts, restore_run, take_out
 from pilworld.paired.stations import open_station
 from pilworld.policies.base import Policy, PolicyError
 from pilworld.policies.registry import make_policy
@@ -244,6 +245,7 @@ def _check_config(root: Path, cfg: PairedConfig, *, write: bool = True) -> None:
     if write:
         root.mkdir(parents=True, exist_ok=True)
         write_json(path, want)
+        back_up(root, [CONFIG_FILE])
 
 
 def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel, str | None]:
@@ -343,6 +345,7 @@ def paired_run(
     from pilworld.collection.collect import dataset_spec
 
     root = Path(cfg.out)
+    restore_run(root)  # a damaged table or setting of a stored run comes back from its backup first
     rig = RigConfig.load(cfg.rig)
     tasks = cfg.tasks  # validates the names
     models = {t: load_model(cfg, rig, t) for t in tasks}  # fails before anything is written
@@ -463,6 +466,7 @@ def paired_run(
                 records.append(rec)
                 with (root / TIMINGS_FILE).open("a") as fh:
                     fh.write(json.dumps(rec) + "\n")
+                back_up(root, [TIMINGS_FILE])
                 if on_branch is not None:
                     on_branch(pair, origin)
             if fresh:  # every branch was copied from another run (real_from): still keep the scene's start

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from pilworld.data.atomic import write_json
+from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.spec import DatasetSpec
@@ -220,6 +221,7 @@ class StartsWriter:
         if self._writer is None:
             self.root.mkdir(parents=True, exist_ok=True)
             write_json(self.root / META_FILE, self.meta)
+            back_up(self.root, [META_FILE])
             self._writer = EpisodeWriter(self.root, self._spec)
         episode = start_episode(start, checkpoint=checkpoint)
         slot = self._redo.pop(key, None)

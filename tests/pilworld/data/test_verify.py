@@ -27,6 +27,16 @@ FILES = {
     "starts data": "starts/data/chunk-000/file-000.parquet",
     "outcomes": "meta/outcomes.parquet",
     "info.json": "meta/info.json",
+    "tasks": "meta/tasks.parquet",
+    "spec": "meta/pilworld.json",
+    "manifest": "meta/manifest.json",
+    "outcomes manifest": "meta/outcomes_manifest.json",
+    "settings": "paired_config.json",
+    "timings": "paired_timings.jsonl",
+    "episodes table backup": "meta/backup/meta/episodes/chunk-000/file-000.parquet",
+    "info.json backup": "meta/backup/meta/info.json",
+    "manifest backup": "meta/backup/meta/manifest.json",
+    "settings backup": "meta/backup/paired_config.json",
 }
 
 

@@ -57,7 +57,13 @@ def _file_of(run: Path, origin: str, kind: str) -> tuple[int, str]:
 
 @pytest.mark.parametrize(
     ("origin", "kind", "how"),
-    [("real", "data", "delete"), ("imagined", "video", "truncate"), ("real", "video", "truncate")],
+    [
+        ("real", "data", "delete"),
+        ("imagined", "video", "truncate"),
+        ("real", "video", "truncate"),
+        ("real", "data", "corrupt"),
+        ("imagined", "video", "corrupt"),
+    ],
 )
 def test_a_resume_redoes_a_damaged_branch(
     finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], origin: str, kind: str, how: str
@@ -66,10 +72,7 @@ def test_a_resume_redoes_a_damaged_branch(
     shutil.copytree(finished_run, run)
     index, rel = _file_of(run, origin, kind)
     path = run / rel
-    if how == "delete":
-        path.unlink()
-    else:
-        path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    _damage(path, how)
     capsys.readouterr()
     assert main(["data", "verify", str(run), "--no-progress"]) == 1  # the damage is real
     capsys.readouterr()
@@ -79,7 +82,8 @@ def test_a_resume_redoes_a_damaged_branch(
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if line.endswith("— redoing")]
     pair = "sort_cubes/scripted_step_30k/seed0/subtask0"
-    detail = "missing" if how == "delete" else "is"  # a cut-short file: "is N bytes, manifest says M"
+    # a cut-short file: "is N bytes, manifest says M"; a flipped byte: "content differs from its sha256 …"
+    detail = {"delete": "missing", "truncate": "is", "corrupt": "content differs"}[how]
     assert lines and lines[0].startswith(f"episode {index} ({pair}, {origin}): {rel} {detail}"), err
     assert len(lines) == 1, err
     assert summary["branches_run"] == 1  # only the damaged branch ran again
@@ -112,12 +116,83 @@ def test_a_resume_records_a_damaged_start_again(
     assert dataset_digest(run) == dataset_digest(finished_run)
 
 
-def test_a_damaged_episodes_table_is_refused_by_name(finished_run: Path, tmp_path: Path) -> None:
+# Every table and setting a run keeps (its own dataset's, its starts/'s), and one backup copy.
+TABLES = [
+    "meta/episodes/chunk-000/file-000.parquet",
+    "meta/info.json",
+    "meta/tasks.parquet",
+    "meta/stats.json",
+    "meta/pilworld.json",
+    "meta/manifest.json",
+    "meta/outcomes.parquet",
+    "meta/outcomes_manifest.json",
+    "paired_config.json",
+    "paired_timings.jsonl",
+    "starts/meta/episodes/chunk-000/file-000.parquet",
+    "starts/starts.json",
+    "meta/backup/meta/episodes/chunk-000/file-000.parquet",
+]
+
+
+def _damage(path: Path, how: str) -> None:
+    data = path.read_bytes()
+    if how == "delete":
+        path.unlink()
+    elif how == "truncate":
+        path.write_bytes(data[: len(data) // 2])
+    else:  # one byte flipped in the middle: same size, different content
+        flipped = bytearray(data)
+        flipped[len(data) // 2] ^= 0xFF
+        path.write_bytes(bytes(flipped))
+
+
+def _check_restored(run: Path, finished_run: Path, rel: str, capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    assert main(["data", "verify", str(run), "--no-progress"]) == 1, f"{rel}: the damage is not real"
+    capsys.readouterr()
+    summary = paired_run(_cfg(run), progress=False)
+    err = capsys.readouterr().err
+    assert summary["branches_run"] == 0, f"{rel}: a table's damage made branches run again:\n{err}"
+    if not rel.startswith("meta/backup/"):  # a damaged backup is copied again quietly; a table is announced
+        assert "restored from meta/backup/" in err and rel.split("/")[-1] in err, err
+    assert main(["data", "verify", str(run), "--no-progress"]) == 0, capsys.readouterr().out
+    for name in ("meta/info.json", "paired_config.json", "starts/starts.json", "paired_timings.jsonl"):
+        assert (run / name).read_bytes() == (finished_run / name).read_bytes(), name
+    assert dataset_digest(run) == dataset_digest(finished_run)
+    assert dataset_digest(run / "starts") == dataset_digest(finished_run / "starts")
+    verdicts = sorted((o.episode_index, o.judge_id, o.success) for o in read_outcomes(run))
+    assert verdicts == sorted((o.episode_index, o.judge_id, o.success) for o in read_outcomes(finished_run))
+
+
+@pytest.mark.parametrize("rel", TABLES)
+def test_a_resume_restores_a_corrupted_table(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], rel: str
+) -> None:
     run = tmp_path / "run"
     shutil.copytree(finished_run, run)
-    table = run / "meta/episodes/chunk-000/file-000.parquet"
-    table.write_bytes(table.read_bytes()[:100])
-    with pytest.raises(DatasetError, match=r"meta/episodes/chunk-000/file-000\.parquet"):
+    _damage(run / rel, "corrupt")
+    _check_restored(run, finished_run, rel, capsys)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("how", ["delete", "truncate"])
+@pytest.mark.parametrize("rel", TABLES)
+def test_a_resume_restores_a_deleted_or_cut_short_table(
+    finished_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], rel: str, how: str
+) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    _damage(run / rel, how)
+    _check_restored(run, finished_run, rel, capsys)
+
+
+def test_a_table_and_its_backup_both_damaged_are_refused_by_name(finished_run: Path, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    for rel in ("meta/episodes/chunk-000/file-000.parquet", "meta/backup/meta/episodes/chunk-000/file-000.parquet"):
+        table = run / rel
+        table.write_bytes(table.read_bytes()[:100])
+    with pytest.raises(DatasetError, match=r"meta/episodes/chunk-000/file-000\.parquet .*and its backup"):
         paired_run(_cfg(run), progress=False)
 
 
