@@ -71,6 +71,7 @@ def build_arms(rig: RigConfig, endpoints: FakeEndpoints | None = None) -> dict[s
             retries=cfg.retries,
             max_joint_speed=cfg.max_joint_speed,
             stream_timeout=cfg.stream_timeout,
+            watchdog_hz=cfg.watchdog_hz,
         )
     return arms
 

@@ -34,6 +34,8 @@ class URArmDriverConfig(StrictModel):
     max_joint_speed: float = Field(default=3.141592653589793, gt=0, le=3.2)
     # RTDE silence [s] (no new controller timestamp) that faults the arm; a real controller sends every 2 ms.
     stream_timeout: float = Field(default=0.5, gt=0, le=5)
+    # The controller stops the program when the servo loop is silent for 1/watchdog_hz [s].
+    watchdog_hz: float = Field(default=10.0, ge=1, le=500)
 
 
 class DynamixelGripperConfig(StrictModel):
