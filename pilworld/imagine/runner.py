@@ -14,6 +14,7 @@ back, so every backend writes the same dataset. A killed run resumes: a rerun sk
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import time
@@ -30,6 +31,7 @@ from pilworld.data.episode import Episode
 from pilworld.data.writer import EpisodeWriter
 from pilworld.paired.revalidate import damaged_branches, restore_run, take_out
 from pilworld.paired.runner import (
+    RESUME_HINT,
     PairedConfig,
     PairedSubtask,
     branch_record,
@@ -44,10 +46,6 @@ from pilworld.starts.store import StartsError, robot_spec_from_json, robot_spec_
 from pilworld.types import ChunkSpec, RobotSpec
 
 CONFIG_FILE = "imagine_config.json"
-
-
-class ImagineError(ValueError):
-    """An imagined-only run that cannot go on (a policy that stopped answering, …); what is stored stays."""
 
 
 TIMINGS_FILE = "imagine_timings.jsonl"
@@ -271,8 +269,15 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
             steps=cfg.steps,
             control_rate_hz=w["rig"].control_rate_hz,
         )
-    except PolicyError as err:  # every branch stored so far stays; a rerun resumes from this one
-        raise ImagineError(f"checkpoint {job.checkpoint}, {job.pair_id}: {err}") from err
+    except PolicyError as err:  # every branch stored so far stays; a rerun resumes from this one (CLI: exit 1)
+        # The failed client is closed for good: a worker that lives on (in-process reruns, a Ray actor)
+        # must connect afresh for its next job rather than fail it with "connection closed".
+        failed = w["policies"].pop(job.checkpoint, None)
+        close = getattr(failed, "close", None)
+        if callable(close):
+            with contextlib.suppress(Exception):
+                close()
+        raise err.in_context(job.checkpoint, f"{job.pair_id}, imagined branch", RESUME_HINT) from err
     extra = {
         "pair": job.pair_id,
         "sim_task": task,
@@ -336,10 +341,10 @@ def imagine_run(
     from pilworld.policies.registry import make_policy
 
     for ckpt in cfg.checkpoints:
-        try:  # an unknown checkpoint name, or a policy server that does not answer, fails here, naming it
+        try:  # a policy server that does not answer fails here, naming it, before anything is written
             make_policy(ckpt, rig, spec)
         except PolicyError as err:
-            raise ValueError(f"checkpoint {ckpt}: {err}") from err
+            raise err.in_context(ckpt, "connecting", "nothing was written") from err
     _check_config(root, cfg, write=False)
     jobs = plan_jobs(cfg, source)
     done = stored_branches(root)

@@ -133,3 +133,26 @@ def test_debug_shows_the_traceback(server: FaultyServer, tmp_path: Path) -> None
             main(["--debug", *_run(tmp_path / "run", server.url, 1)])
     finally:
         server.start()
+
+
+@pytest.mark.parametrize("case", ["exception reply", "timeout"])
+def test_an_imagined_only_run_fails_the_same_way(
+    case: str, server: FaultyServer, one_pair: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `pilworld imagine` from the one-pair run's starts: the same one line and exit 1, and a rerun resumes.
+    mode, _, kind = CASES[case]
+    out = tmp_path / "imagined"
+    args = ["imagine", "--starts", str(one_pair), "--checkpoints", server.url, "--out", str(out), "--json"]
+    server.set_mode(mode, 0)
+    try:
+        rc = main(args)
+    finally:
+        server.set_mode("good")
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert rc == 1 and len(lines) == 1, captured.err
+    assert lines[0].startswith(f"pilworld: error: checkpoint {server.url}") and f": {kind}: " in lines[0]
+    assert "rerun the same command to resume" in lines[0] and "Traceback" not in captured.err
+    assert main(args) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["branches_run"] == 1

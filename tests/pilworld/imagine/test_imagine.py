@@ -168,8 +168,8 @@ def test_a_rerun_with_other_settings_is_refused(
     assert _digest(imagined) == before
 
 
-def _one_line_error(args: list[str], capsys: pytest.CaptureFixture[str]) -> str:
-    assert main(args) == 2
+def _one_line_error(args: list[str], capsys: pytest.CaptureFixture[str], status: int = 2) -> str:
+    assert main(args) == status
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("pilworld: error: "), err
     return err[0]
@@ -235,8 +235,9 @@ def test_a_checkpoint_that_does_not_answer_is_one_line(
 ) -> None:
     url = f"ws://127.0.0.1:{_free_port()}"
     out = tmp_path / "o"
-    msg = _one_line_error(["imagine", "--starts", str(paired), "--checkpoints", url, "--out", str(out)], capsys)
-    assert f"checkpoint {url}" in msg
+    # a policy that fails is a run failure (exit 1, as in paired run); a name that is no checkpoint is bad input (2)
+    msg = _one_line_error(["imagine", "--starts", str(paired), "--checkpoints", url, "--out", str(out)], capsys, 1)
+    assert f"checkpoint {url} (connecting): unreachable" in msg, msg
     assert not out.exists()  # refused before anything was written
     msg = _one_line_error(["imagine", "--starts", str(paired), "--checkpoints", "nope", "--out", str(out)], capsys)
     assert "nope" in msg
