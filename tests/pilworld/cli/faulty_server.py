@@ -38,7 +38,9 @@ def free_port() -> int:
 class FaultyServer:
     """Serve ``checkpoint`` of the rig at ``rig_path`` on ``ws://127.0.0.1:port``, misbehaving per ``mode``."""
 
-    def __init__(self, rig_path: str, checkpoint: str, port: int, *, extra_metadata: Mapping[str, Any] = ()) -> None:
+    def __init__(
+        self, rig_path: str, checkpoint: str, port: int, *, extra_metadata: Mapping[str, Any] | None = None
+    ) -> None:
         rig = RigConfig.load(rig_path)
         self.policy = ScriptedPolicy(rig, checkpoint)
         self.size = (rig.image_size.height, rig.image_size.width)
@@ -46,7 +48,7 @@ class FaultyServer:
         self.mode = "good"
         self.fail_after = 0  # inference requests answered well before misbehaving
         self.answered = 0
-        self.extra_metadata = dict(extra_metadata)
+        self.extra_metadata = dict(extra_metadata or {})
         self._release = threading.Event()
         self._lock = threading.Lock()
         self._server: Server | None = None
@@ -99,7 +101,8 @@ class FaultyServer:
         metadata = {"image_size": list(self.size), PILWORLD_KEY: {"policy": self.policy.name, "reset": True}}
         ws.send(packb({**metadata, **self.extra_metadata}))
         while True:
-            message = unpackb(ws.recv(timeout=STALL_BOUND_S))
+            frame = ws.recv(timeout=STALL_BOUND_S)
+            message = unpackb(frame if isinstance(frame, bytes) else frame.encode())
             if isinstance(message, dict) and message.get(RESET_KEY):
                 with self._lock:
                     self.policy.reset(message.get("seed"))
