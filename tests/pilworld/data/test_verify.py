@@ -17,6 +17,7 @@ import pytest
 from pilworld.cli.main import main
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.types import ChunkSpec
+from tests.pilworld.data.damage import damage
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
 FILES = {
@@ -55,18 +56,6 @@ def finished_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _damage(path: Path, how: str) -> None:
-    data = path.read_bytes()
-    if how == "delete":
-        path.unlink()
-    elif how == "truncate":
-        path.write_bytes(data[: len(data) // 2])
-    else:  # one byte flipped in the middle: same size, different content
-        flipped = bytearray(data)
-        flipped[len(data) // 2] ^= 0xFF
-        path.write_bytes(bytes(flipped))
-
-
 def _verify(path: Path, capsys: pytest.CaptureFixture[str], *extra: str) -> tuple[int, dict[str, object]]:
     capsys.readouterr()
     rc = main(["data", "verify", str(path), "--json", "--no-progress", *extra])
@@ -87,7 +76,7 @@ def test_any_one_damaged_file_is_found(
 ) -> None:
     run = tmp_path / "run"
     shutil.copytree(finished_run, run)
-    _damage(run / FILES[kind], how)
+    damage(run / FILES[kind], how)
     rc, report = _verify(run, capsys)
     assert rc == 1, f"{kind} {how}: not detected: {report}"
     assert FILES[kind].split("/")[-1] in json.dumps(report), report

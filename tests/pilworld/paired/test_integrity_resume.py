@@ -18,6 +18,7 @@ from pilworld.data.outcomes import read_outcomes
 from pilworld.data.reader import DatasetError, EpisodeStore
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.types import ChunkSpec
+from tests.pilworld.data.damage import damage
 from tests.pilworld.paired.digest import dataset_digest
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
@@ -72,7 +73,7 @@ def test_a_resume_redoes_a_damaged_branch(
     shutil.copytree(finished_run, run)
     index, rel = _file_of(run, origin, kind)
     path = run / rel
-    _damage(path, how)
+    damage(path, how)
     capsys.readouterr()
     assert main(["data", "verify", str(run), "--no-progress"]) == 1  # the damage is real
     capsys.readouterr()
@@ -134,18 +135,6 @@ TABLES = [
 ]
 
 
-def _damage(path: Path, how: str) -> None:
-    data = path.read_bytes()
-    if how == "delete":
-        path.unlink()
-    elif how == "truncate":
-        path.write_bytes(data[: len(data) // 2])
-    else:  # one byte flipped in the middle: same size, different content
-        flipped = bytearray(data)
-        flipped[len(data) // 2] ^= 0xFF
-        path.write_bytes(bytes(flipped))
-
-
 def _check_restored(run: Path, finished_run: Path, rel: str, capsys: pytest.CaptureFixture[str]) -> None:
     capsys.readouterr()
     assert main(["data", "verify", str(run), "--no-progress"]) == 1, f"{rel}: the damage is not real"
@@ -170,7 +159,7 @@ def test_a_resume_restores_a_corrupted_table(
 ) -> None:
     run = tmp_path / "run"
     shutil.copytree(finished_run, run)
-    _damage(run / rel, "corrupt")
+    damage(run / rel, "corrupt")
     _check_restored(run, finished_run, rel, capsys)
 
 
@@ -182,7 +171,7 @@ def test_a_resume_restores_a_deleted_or_cut_short_table(
 ) -> None:
     run = tmp_path / "run"
     shutil.copytree(finished_run, run)
-    _damage(run / rel, how)
+    damage(run / rel, how)
     _check_restored(run, finished_run, rel, capsys)
 
 
