@@ -33,11 +33,22 @@ host = sys.argv[1]
 Q_HOME = @Q_HOME@
 TCP = @TCP@
 out = {}
+
+
+def settle(read, target, n=6, bound=2.0):
+    # rtde_receive is a connection of its own: on a loaded machine its latest sample may predate the one that
+    # told rtde_control a move ended. Read on until a sample at the target arrives (bounded), then go on.
+    t = time.monotonic()
+    while max(abs(a - b) for a, b in zip(read()[:n], target[:n])) >= 1e-3 and time.monotonic() - t < bound:
+        time.sleep(0.002)
+
+
 c = rtde_control.RTDEControlInterface(host, 500.0)
 r = rtde_receive.RTDEReceiveInterface(host, 500.0)
 t0 = r.getTimestamp()
 out["movej"] = c.moveJ(Q_HOME, 1.0, 1.0)
-out["movej_sim_s"] = r.getTimestamp() - t0
+settle(r.getActualQ, Q_HOME)
+out["movej_sim_s"] = r.getTimestamp() - t0  # to the first sample at the target: the move's end
 out["q_home"] = r.getActualQ()
 out["set_tcp"] = c.setTcp(TCP)
 out["tcp_offset"] = c.getTCPOffset()
@@ -54,7 +65,7 @@ out["fk_of_ik"] = c.getForwardKinematics(out["ik"], TCP)
 goal = list(out["actual_tcp"]); goal[0] += 0.05; goal[1] -= 0.03; goal[2] += 0.02
 out["movel_goal"] = goal
 out["movel"] = c.moveL(goal, 0.1, 0.5)
-time.sleep(0.05)
+settle(r.getActualTCPPose, goal, n=3)
 out["after_movel"] = r.getActualTCPPose()
 out["speedj"] = c.speedJ([0.2, -0.1, 0.0, 0.0, 0.0, 0.0], 1.0, 0.002)
 samples = []
@@ -73,8 +84,8 @@ out["path"] = [p for p in PATH]
 t0 = r.getTimestamp()
 out["before_path"] = r.getActualQ()
 out["movej_path"] = c.moveJ([p + [1.0, 2.0, 0.0] for p in PATH])
+settle(r.getActualQ, PATH[-1])
 out["path_sim_s"] = r.getTimestamp() - t0
-time.sleep(0.05)
 out["after_path"] = r.getActualQ()
 out["async_movej"] = c.moveJ(Q_HOME, 0.5, 1.0, True)
 time.sleep(0.1)
