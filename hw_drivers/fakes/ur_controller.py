@@ -35,7 +35,6 @@ The ur_rtde constructors hold the GIL, so the client must never run in the proce
 from __future__ import annotations
 
 import contextlib
-import re
 import select
 import socket
 import struct
@@ -50,109 +49,37 @@ from hw_drivers.fakes.backend import RigBackend, check_side
 from hw_drivers.fakes.faults import FaultSwitch
 from hw_drivers.fakes.ur_commands import IMPLEMENTED, REALTIME, describe
 from hw_drivers.fakes.ur_pose import interpolate, matrix_to_pose, pose_to_matrix, rotvec_to_matrix
+from hw_drivers.fakes.ur_protocol import (
+    CONTROLLER_VERSION,
+    DASHBOARD_PORT,
+    FMT,
+    IDLE,
+    MSG_I,
+    MSG_O,
+    MSG_P,
+    MSG_S,
+    MSG_U,
+    MSG_V,
+    PLAYING,
+    POLYSCOPE_VERSION,
+    POWER_OFF,
+    ROBOT_MODE_NAMES,
+    RTDE_PORT,
+    RUNNING,
+    SAFETY,
+    SCRIPT_PORT,
+    STOP_CMDS,
+    STOPPED,
+    TICK_S,
+    MSG_v,
+    Waypoint,
+    frame,
+    parse_path,
+    register_index,
+    type_of,
+)
 from pilworld.kinematics.fk import fk, fk_flange
 from pilworld.kinematics.ik import ik_nearest
-
-RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT = 30004, 29999, 30003
-CONTROLLER_VERSION = (5, 11, 1, 108318)
-POLYSCOPE_VERSION = "URSoftware 5.11.1.108318 (Mar 22 2021)"
-TICK_S = 0.002  # the controller's 500 Hz cycle ("sync()" in URScript)
-
-# RTDE message types
-MSG_V, MSG_v, MSG_O, MSG_I, MSG_S, MSG_P, MSG_U = 86, 118, 79, 73, 83, 80, 85
-# runtime_state, robot_mode, safety_mode values (ur_rtde's enums)
-STOPPED, PLAYING = 1, 2
-POWER_OFF, IDLE, RUNNING = 3, 5, 7
-SAFETY = {  # name -> (safety_mode, safety_status_bits, dashboard word)
-    "normal": (1, 1 << 0, "NORMAL"),
-    "protective_stop": (3, (1 << 2) | (1 << 10), "PROTECTIVE_STOP"),
-    "emergency_stop": (7, (1 << 6) | (1 << 7) | (1 << 10), "ROBOT_EMERGENCY_STOP"),
-}
-ROBOT_MODE_NAMES = {POWER_OFF: "POWER_OFF", IDLE: "IDLE", RUNNING: "RUNNING"}
-STOP_CMDS = {15, 16, 33, 34}  # speedStop, servoStop, stopL, stopJ
-
-_FMT = {"VECTOR6D": "6d", "VECTOR3D": "3d", "DOUBLE": "d", "INT32": "i", "UINT32": "I", "UINT64": "Q"}
-_FMT.update({"VECTOR6INT32": "6i", "UINT8": "B", "BOOL": "?"})
-_VEC6 = [
-    "target_q",
-    "target_qd",
-    "target_qdd",
-    "target_current",
-    "target_moment",
-    "actual_q",
-    "actual_qd",
-    "actual_qdd",
-    "actual_current",
-    "actual_moment",
-    "joint_control_output",
-    "actual_TCP_pose",
-    "actual_TCP_speed",
-    "actual_TCP_force",
-    "target_TCP_pose",
-    "target_TCP_speed",
-    "joint_temperatures",
-    "actual_joint_voltage",
-    "ft_raw_wrench",
-    "payload_inertia",
-]
-_SCALAR = [
-    "timestamp",
-    "actual_execution_time",
-    "speed_scaling",
-    "target_speed_fraction",
-    "actual_momentum",
-    "actual_main_voltage",
-    "actual_robot_voltage",
-    "actual_robot_current",
-    "standard_analog_input0",
-    "standard_analog_input1",
-    "standard_analog_output0",
-    "standard_analog_output1",
-    "payload",
-]
-_OUT_TYPES = {n: "VECTOR6D" for n in _VEC6} | {n: "DOUBLE" for n in _SCALAR}
-_OUT_TYPES |= {n: "VECTOR3D" for n in ("actual_tool_accelerometer", "payload_cog", "elbow_position")}
-_OUT_TYPES |= {"robot_mode": "INT32", "safety_mode": "INT32", "joint_mode": "VECTOR6INT32"}
-_OUT_TYPES |= {n: "UINT64" for n in ("actual_digital_input_bits", "actual_digital_output_bits")}
-_OUT_TYPES |= {n: "UINT32" for n in ("runtime_state", "robot_status_bits", "safety_status_bits")}
-_OUT_TYPES |= {n: "UINT32" for n in ("output_bit_registers0_to_31", "output_bit_registers32_to_63")}
-_IN_TYPES = {"external_force_torque": "VECTOR6D", "speed_slider_mask": "UINT32", "speed_slider_fraction": "DOUBLE"}
-
-
-def _register(name: str, prefix: str) -> int | None:
-    """``output_int_register_7`` -> 7 for prefix ``output_int_register_`` (registers 0 … 47), else None."""
-    if name.startswith(prefix) and name[len(prefix) :].isdigit() and int(name[len(prefix) :]) < 48:
-        return int(name[len(prefix) :])
-    return None
-
-
-def _type_of(name: str, direction: str) -> str:
-    for kind, rtde_type in (("int", "INT32"), ("double", "DOUBLE")):
-        if _register(name, f"{direction}_{kind}_register_") is not None:
-            return rtde_type
-    table = _OUT_TYPES if direction == "output" else _IN_TYPES
-    if direction == "input" and name.startswith(("standard_", "configurable_", "tool_")):
-        return "DOUBLE" if "analog_output_" in name and not name.endswith("type") else "UINT8"
-    return table.get(name, "NOT_FOUND")
-
-
-# A waypoint line ur_rtde's Path::toScriptCode injects into exec_move_path(): movej([q…],a=…,v=…,r=…)
-_PATH_LINE = re.compile(r"^\s*(movej|movel)\((p?)\[([^\]]*)\],a=([^,]+),v=([^,]+),r=([^)]+)\)\s*$")
-Waypoint = tuple[str, bool, NDArray[np.float64], float]  # move, is a pose, target, speed
-
-
-def parse_path(script: str) -> list[Waypoint]:
-    """The waypoints of an uploaded program's movej/movel lines; blend radius and acceleration are not used."""
-    path: list[Waypoint] = []
-    for line in script.splitlines():
-        if (m := _PATH_LINE.match(line)) is not None:
-            target = np.array([float(v) for v in m.group(3).split(",")])
-            path.append((m.group(1), m.group(2) == "p", target, float(m.group(5))))
-    return path
-
-
-def _frame(msg_type: int, payload: bytes = b"") -> bytes:
-    return struct.pack(">HB", 3 + len(payload), msg_type) + payload
 
 
 class FakeURController:
@@ -568,24 +495,24 @@ class FakeURController:
                     elif kind == MSG_O:
                         period = 1.0 / max(1.0, struct.unpack_from(">d", payload)[0])
                         names = [n for n in payload[8:].decode().split(",") if n]
-                        outputs = [(n, _type_of(n, "output")) for n in names]
+                        outputs = [(n, type_of(n, "output")) for n in names]
                         ok = all(t != "NOT_FOUND" for _, t in outputs)
-                        conn.sendall(_frame(MSG_O, bytes([1 if ok else 0]) + ",".join(t for _, t in outputs).encode()))
+                        conn.sendall(frame(MSG_O, bytes([1 if ok else 0]) + ",".join(t for _, t in outputs).encode()))
                     elif kind == MSG_I:
                         names = [n for n in payload.decode().split(",") if n]
-                        types = [(n, _type_of(n, "input")) for n in names]
+                        types = [(n, type_of(n, "input")) for n in names]
                         rid = len(inputs) + 1 if all(t != "NOT_FOUND" for _, t in types) else 0
                         if rid:
                             inputs[rid] = types
-                        conn.sendall(_frame(MSG_I, bytes([rid]) + ",".join(t for _, t in types).encode()))
+                        conn.sendall(frame(MSG_I, bytes([rid]) + ",".join(t for _, t in types).encode()))
                     elif kind in (MSG_S, MSG_P):
                         started = kind == MSG_S and bool(outputs)
                         next_send = time.monotonic()
-                        conn.sendall(_frame(kind, b"\x01"))
+                        conn.sendall(frame(kind, b"\x01"))
                     elif kind == MSG_V:
-                        conn.sendall(_frame(MSG_V, b"\x01"))
+                        conn.sendall(frame(MSG_V, b"\x01"))
                     elif kind == MSG_v:
-                        conn.sendall(_frame(MSG_v, struct.pack(">IIII", *CONTROLLER_VERSION)))
+                        conn.sendall(frame(MSG_v, struct.pack(">IIII", *CONTROLLER_VERSION)))
             if started and time.monotonic() >= next_send:
                 next_send = max(next_send + period, time.monotonic() - period)
                 if self.faults.active("stall") or self.faults.active("drop"):
@@ -599,16 +526,16 @@ class FakeURController:
         recipe = inputs.get(payload[0])
         if recipe is None:
             return
-        values = struct.unpack_from(">" + "".join(_FMT[t] for _, t in recipe), payload, 1)
+        values = struct.unpack_from(">" + "".join(FMT[t] for _, t in recipe), payload, 1)
         with self._lock:
             i = 0
             for name, rtde_type in recipe:
-                n = int(_FMT[rtde_type][0]) if _FMT[rtde_type][0].isdigit() else 1
-                if (reg := _register(name, "input_int_register_")) is not None:
+                n = int(FMT[rtde_type][0]) if FMT[rtde_type][0].isdigit() else 1
+                if (reg := register_index(name, "input_int_register_")) is not None:
                     self.in_int[reg] = int(values[i])
                     if reg == 0:
                         self._last_kick = time.monotonic()
-                elif (reg := _register(name, "input_double_register_")) is not None:
+                elif (reg := register_index(name, "input_double_register_")) is not None:
                     self.in_double[reg] = float(values[i])
                 i += n
 
@@ -641,16 +568,16 @@ class FakeURController:
                     flat.extend(qd.tolist())
                 elif name == "joint_mode":
                     flat.extend([253] * 6)  # JOINT_RUNNING_MODE
-                elif (reg := _register(name, "output_int_register_")) is not None:
+                elif (reg := register_index(name, "output_int_register_")) is not None:
                     flat.append(self.out_int[reg])
-                elif (reg := _register(name, "output_double_register_")) is not None:
+                elif (reg := register_index(name, "output_double_register_")) is not None:
                     flat.append(self.out_double[reg])
                 else:
-                    fmt = _FMT[rtde_type]
+                    fmt = FMT[rtde_type]
                     count = int(fmt[0]) if fmt[0].isdigit() else 1
                     flat.extend([scalars.get(name, 0)] * count)
-        fmt = ">B" + "".join(_FMT[t] for _, t in outputs)
-        return _frame(MSG_U, struct.pack(fmt, 1, *flat))
+        fmt = ">B" + "".join(FMT[t] for _, t in outputs)
+        return frame(MSG_U, struct.pack(fmt, 1, *flat))
 
     # -- dashboard
 

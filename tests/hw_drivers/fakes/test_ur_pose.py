@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hw_drivers.fakes.ur_controller import parse_path
 from hw_drivers.fakes.ur_pose import interpolate, matrix_to_pose, matrix_to_rotvec, pose_to_matrix, rotvec_to_matrix
+from hw_drivers.fakes.ur_protocol import parse_path
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 0.5, 2.0, np.pi - 1e-3, np.pi - 1e-7])
