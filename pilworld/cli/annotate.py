@@ -94,12 +94,17 @@ def _serve(args: argparse.Namespace) -> int:
         raise KeyboardInterrupt  # SIGTERM stops as cleanly as Ctrl-C
 
     previous = signal.signal(signal.SIGTERM, _terminate)
+    # Ctrl-C too, explicitly: a process started in the background by a non-interactive shell (a CI script,
+    # `cmd &`) inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler of its own:
+    # the server would go on serving after the Ctrl-C this prompt promises to honour.
+    previous_int = signal.signal(signal.SIGINT, _terminate)
     try:
         server.serve_forever()
     except KeyboardInterrupt:
         print("stopping", flush=True)
     finally:
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, previous_int)
         stop.set()
         server.httpd.server_close()
     if not args.no_export:
