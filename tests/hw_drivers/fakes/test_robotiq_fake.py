@@ -96,8 +96,9 @@ def test_moves_the_backend_and_reports_position(rig: Rig) -> None:
     wait_for(lambda: rig.status()[4] == 0)
     assert rig.backend.gripper_opening("left") == 1.0
     rig.command(0x09, position=102)  # 1 - 102/255 = 0.6
-    wait_for(lambda: rig.status()[0] >> 6 == 3)
-    assert rig.backend.gripper_opening("left") == pytest.approx(0.6)
+    wait_for(lambda: rig.status()[0] >> 6 == 3)  # "at the requested position": within 2 counts …
+    assert rig.backend.gripper_opening("left") == pytest.approx(0.6, abs=2.0 / 255 + 1e-9)
+    wait_for(lambda: rig.backend.gripper_opening("left") == pytest.approx(0.6))  # … and the fingers end exactly there
     assert rig.status()[4] == 102
 
 
