@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -24,16 +25,31 @@ BROWSER_TESTS = (
 )
 RUN_LIMIT_S = 300.0  # the browser tests' own bound
 BURN_LIMIT_S = RUN_LIMIT_S + 60.0  # a burner outlives the browser tests, ends itself after this, is killed in finally
-# One CPU-bound loop per core, in a fresh interpreter that imports nothing: it spins from its first
-# millisecond, and a burner never holds anything the test needs. It prints once when it starts spinning.
+# One CPU-bound loop per core, in a fresh interpreter that imports nothing (-I -S: no site, no .pth files):
+# it spins from its first millisecond, and a burner never holds anything the test needs.
 BURNER = (
     "import sys, time\n"
     "end = time.monotonic() + float(sys.argv[1]); x = 0\n"
-    "print('spinning', flush=True)\n"
     "while time.monotonic() < end:\n"
     "    for _ in range(100_000):\n"
     "        x = (x * 1103515245 + 12345) & 0x7FFFFFFF\n"
 )
+
+
+def cpu_seconds(pid: int) -> float:
+    """User CPU time a process has used (Linux /proc); how the test knows a burner really spins."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return int(fields[11]) / os.sysconf("SC_CLK_TCK")
+
+
+def wait_spinning(burners: list[subprocess.Popen[bytes]], bound_s: float = 60.0) -> None:
+    """Until every burner has used 0.2 s of CPU (no pipe handshake: a reader blocked on a burner's pipe was
+    seen to wait out the burner on a loaded CI machine)."""
+    deadline = time.monotonic() + bound_s
+    while any(cpu_seconds(p.pid) < 0.2 for p in burners):
+        assert time.monotonic() < deadline, f"burners not spinning after {bound_s} s"
+        assert all(p.poll() is None for p in burners), "a burner exited before it spun"
+        time.sleep(0.05)
 
 
 def usable_cores() -> int:
@@ -55,13 +71,12 @@ def usable_cores() -> int:
 @pytest.mark.skipif(find_chromium() is None, reason="no Chromium (scripts/install-chromium.sh installs it)")
 def test_browser_tests_pass_with_every_core_busy(tmp_path: Path) -> None:
     burners = [
-        subprocess.Popen([sys.executable, "-c", BURNER, str(BURN_LIMIT_S)], stdout=subprocess.PIPE, text=True)
+        subprocess.Popen([sys.executable, "-I", "-S", "-c", BURNER, str(BURN_LIMIT_S)], stdout=subprocess.DEVNULL)
         for _ in range(usable_cores())
     ]
     try:
         # The load is real: every burner is spinning before the browser starts.
-        for p in burners:
-            assert p.stdout is not None and p.stdout.readline().strip() == "spinning"
+        wait_spinning(burners)
         env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
         proc = subprocess.run(
             [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *BROWSER_TESTS],
