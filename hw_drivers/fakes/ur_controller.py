@@ -40,6 +40,7 @@ import socket
 import struct
 import threading
 import time
+from dataclasses import dataclass, field
 from types import TracebackType
 
 import numpy as np
@@ -82,6 +83,19 @@ from pilworld.kinematics.fk import fk, fk_flange
 from pilworld.kinematics.ik import ik_nearest
 
 
+@dataclass
+class _RtdeSession:
+    """One RTDE client's recipes and output schedule."""
+
+    conn: socket.socket
+    outputs: list[tuple[str, str]] = field(default_factory=list)
+    inputs: dict[int, list[tuple[str, str]]] = field(default_factory=dict)
+    period: float = 0.002
+    started: bool = False
+    next_send: float = 0.0
+    buf: bytes = b""
+
+
 class FakeURController:
     """One fake UR controller on ``host`` (any 127.x.y.z) driving the ``side`` arm of ``backend``."""
 
@@ -105,6 +119,10 @@ class FakeURController:
         self._setpoint = np.zeros(6)
         self._watchdog_s: float | None = None
         self._last_kick = 0.0
+        # RTDE connections and how many of their threads hold bytes read but not yet applied: the watchdog
+        # counts an input that reached this process, not only one it has got round to (see _kick_overdue)
+        self._rtde_conns: set[socket.socket] = set()
+        self._rtde_unapplied = 0
         self._program: str | None = None
         self._body = ""  # the uploaded program's text (inside its top-level def)
         self.dh = "ur5e"  # the rig's arms
@@ -236,8 +254,25 @@ class FakeURController:
             if self.safety == "normal":
                 self.safety = "protective_stop"
                 self._halt()
-        if self._watchdog_s is not None and time.monotonic() - self._last_kick > self._watchdog_s:
+        if self._kick_overdue():
             self._halt()  # rtde_set_watchdog(..., "stop"): no input update in time stops the program
+
+    def _kick_overdue(self) -> bool:
+        """No watchdog input for ``1 / watchdog_hz`` s, counting inputs that have reached this process.
+
+        A real controller reads its inputs in hard real time. This fake's threads share one interpreter: after
+        the whole process paused (a loaded machine), this thread may run before the RTDE thread has applied
+        kicks that arrived on time, and halting then would blame a client that never went silent. So an
+        input still waiting in a socket, or read and not yet applied, keeps the program running."""
+        if self._watchdog_s is None or time.monotonic() - self._last_kick <= self._watchdog_s:
+            return False
+        if self._rtde_unapplied:
+            return False
+        conns = [c for c in self._rtde_conns if c.fileno() >= 0]
+        try:
+            return not (conns and select.select(conns, [], [], 0)[0])
+        except (OSError, ValueError):  # a connection closed under us: nothing is waiting on it
+            return True
 
     def _halt(self) -> None:
         """Stop the program and hold the arm where it is."""
@@ -472,55 +507,71 @@ class FakeURController:
     # -- RTDE
 
     def _serve_rtde(self, conn: socket.socket) -> None:
-        outputs: list[tuple[str, str]] = []
-        inputs: dict[int, list[tuple[str, str]]] = {}
-        period, started, next_send = 0.002, False, 0.0
-        buf = b""
-        while self._running.is_set():
-            wait = max(0.0, next_send - time.monotonic()) if started else 0.1
-            if select.select([conn], [], [], wait)[0]:
-                data = conn.recv(65536)
+        session = _RtdeSession(conn)
+        with self._lock:
+            self._rtde_conns.add(conn)
+        try:
+            while self._running.is_set():
+                self._rtde_cycle(session)
+        finally:
+            with self._lock:
+                self._rtde_conns.discard(conn)
+
+    def _rtde_cycle(self, rs: _RtdeSession) -> None:
+        """Read and apply what arrives until the next output packet is due, then send it."""
+        wait = max(0.0, rs.next_send - time.monotonic()) if rs.started else 0.1
+        if select.select([rs.conn], [], [], wait)[0]:
+            with self._lock:
+                self._rtde_unapplied += 1  # from here until applied, a kick is on its way (_kick_overdue)
+            try:
+                data = rs.conn.recv(65536)
                 if not data:
-                    return
-                buf += data
-                while len(buf) >= 3:
-                    size, kind = struct.unpack_from(">HB", buf)
-                    if len(buf) < size:
+                    raise ConnectionResetError("the RTDE client closed the connection")
+                rs.buf += data
+                while len(rs.buf) >= 3:
+                    size, kind = struct.unpack_from(">HB", rs.buf)
+                    if len(rs.buf) < size:
                         break
-                    payload, buf = buf[3:size], buf[size:]
-                    if self.faults.active("stall"):
-                        continue
-                    if kind == MSG_U:
-                        self._on_input(payload, inputs)
-                    elif kind == MSG_O:
-                        period = 1.0 / max(1.0, struct.unpack_from(">d", payload)[0])
-                        names = [n for n in payload[8:].decode().split(",") if n]
-                        outputs = [(n, type_of(n, "output")) for n in names]
-                        ok = all(t != "NOT_FOUND" for _, t in outputs)
-                        conn.sendall(frame(MSG_O, bytes([1 if ok else 0]) + ",".join(t for _, t in outputs).encode()))
-                    elif kind == MSG_I:
-                        names = [n for n in payload.decode().split(",") if n]
-                        types = [(n, type_of(n, "input")) for n in names]
-                        rid = len(inputs) + 1 if all(t != "NOT_FOUND" for _, t in types) else 0
-                        if rid:
-                            inputs[rid] = types
-                        conn.sendall(frame(MSG_I, bytes([rid]) + ",".join(t for _, t in types).encode()))
-                    elif kind in (MSG_S, MSG_P):
-                        started = kind == MSG_S and bool(outputs)
-                        next_send = time.monotonic()
-                        conn.sendall(frame(kind, b"\x01"))
-                    elif kind == MSG_V:
-                        conn.sendall(frame(MSG_V, b"\x01"))
-                    elif kind == MSG_v:
-                        conn.sendall(frame(MSG_v, struct.pack(">IIII", *CONTROLLER_VERSION)))
-            if started and time.monotonic() >= next_send:
-                next_send = max(next_send + period, time.monotonic() - period)
-                if self.faults.active("stall") or self.faults.active("drop"):
-                    continue
-                packet = self._output_packet(outputs)
-                if self.faults.active("corrupt"):  # intact frame, garbled content (NaN doubles, huge ints)
-                    packet = packet[:4] + b"\xff" * (len(packet) - 4)
-                conn.sendall(packet)
+                    payload, rs.buf = rs.buf[3:size], rs.buf[size:]
+                    if not self.faults.active("stall"):
+                        self._rtde_message(rs, kind, payload)
+            finally:
+                with self._lock:
+                    self._rtde_unapplied -= 1
+        if rs.started and time.monotonic() >= rs.next_send:
+            rs.next_send = max(rs.next_send + rs.period, time.monotonic() - rs.period)
+            if self.faults.active("stall") or self.faults.active("drop"):
+                return
+            packet = self._output_packet(rs.outputs)
+            if self.faults.active("corrupt"):  # intact frame, garbled content (NaN doubles, huge ints)
+                packet = packet[:4] + b"\xff" * (len(packet) - 4)
+            rs.conn.sendall(packet)
+
+    def _rtde_message(self, rs: _RtdeSession, kind: int, payload: bytes) -> None:
+        conn = rs.conn
+        if kind == MSG_U:
+            self._on_input(payload, rs.inputs)
+        elif kind == MSG_O:
+            rs.period = 1.0 / max(1.0, struct.unpack_from(">d", payload)[0])
+            names = [n for n in payload[8:].decode().split(",") if n]
+            rs.outputs = [(n, type_of(n, "output")) for n in names]
+            ok = all(t != "NOT_FOUND" for _, t in rs.outputs)
+            conn.sendall(frame(MSG_O, bytes([1 if ok else 0]) + ",".join(t for _, t in rs.outputs).encode()))
+        elif kind == MSG_I:
+            names = [n for n in payload.decode().split(",") if n]
+            types = [(n, type_of(n, "input")) for n in names]
+            rid = len(rs.inputs) + 1 if all(t != "NOT_FOUND" for _, t in types) else 0
+            if rid:
+                rs.inputs[rid] = types
+            conn.sendall(frame(MSG_I, bytes([rid]) + ",".join(t for _, t in types).encode()))
+        elif kind in (MSG_S, MSG_P):
+            rs.started = kind == MSG_S and bool(rs.outputs)
+            rs.next_send = time.monotonic()
+            conn.sendall(frame(kind, b"\x01"))
+        elif kind == MSG_V:
+            conn.sendall(frame(MSG_V, b"\x01"))
+        elif kind == MSG_v:
+            conn.sendall(frame(MSG_v, struct.pack(">IIII", *CONTROLLER_VERSION)))
 
     def _on_input(self, payload: bytes, inputs: dict[int, list[tuple[str, str]]]) -> None:
         recipe = inputs.get(payload[0])

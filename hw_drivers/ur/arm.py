@@ -289,13 +289,31 @@ class URArm:
         status = int(snap[S.STATUS])
         if status in _ERRORS:
             error, message = _ERRORS[status]
-            raise error(self._name, f"{message}; safety_status_bits={int(snap[S.SAFETY_BITS])}")
+            detail = f"{message}; safety_status_bits={int(snap[S.SAFETY_BITS])}"
+            if status in (S.SCRIPT_STOPPED, S.STREAM_TIMEOUT):
+                detail += self._pause_note(snap)
+            raise error(self._name, detail)
         if not self._proc.is_alive():
             raise DeviceConnectionError(self._name, f"worker process exited (code {self._proc.exitcode})")
         silent = time.monotonic() - snap[S.HEARTBEAT]
         if not self._busy and silent > self._worker_timeout:
             raise DeviceTimeoutError(self._name, f"worker process has not answered for {silent:.1f} s")
         return snap
+
+    def _pause_note(self, snap: Any) -> str:
+        """Why a watchdog stop or a silent stream may be this computer's doing: the servo loop's longest
+        period of its last ``RING`` cycles, when it is longer than the watchdog allows."""
+        n = int(min(snap[S.RING_WRITES], S.RING))
+        if not n:
+            return ""
+        longest = float(np.max(S.view(self._ring_raw)[:n]))
+        allowed = 1.0 / self._cfg.watchdog_hz
+        if longest <= allowed:
+            return f"; the servo loop kept time (longest period {longest * 1e3:.0f} ms)"
+        return (
+            f"; the servo loop itself paused for {longest:.2f} s (the watchdog allows {allowed:.2f} s):"
+            " this computer was too busy to command the arm"
+        )
 
     def _receive(self, timeout: float, what: str) -> tuple[Any, ...]:
         assert self._conn is not None and self._proc is not None

@@ -27,31 +27,30 @@ RUN_LIMIT_S = 300.0  # the browser tests' own bound
 # A burner outlives the whole test (its pytest timeout is 2 x RUN_LIMIT_S) and is killed in finally; the
 # bound only keeps one from spinning on if the test process itself is killed.
 BURN_LIMIT_S = 2 * RUN_LIMIT_S + 60.0
-# One CPU-bound loop per core, in a fresh interpreter that imports nothing (-I -S: no site, no .pth files):
-# it spins from its first millisecond, and a burner never holds anything the test needs.
+# One CPU-bound loop per core, in a fresh interpreter that imports nothing (-I -S: no site, no .pth files).
+# It creates its marker file (argv[2]) once it is in the loop: the test waits for the files, which can never
+# block it (a pipe handshake was seen to block a CI run's reader until the burners ended, and the burners'
+# CPU time read from /proc was seen not to reach 0.2 s in 600 s on a CI machine).
 BURNER = (
     "import sys, time\n"
-    "end = time.monotonic() + float(sys.argv[1]); x = 0\n"
+    "end = time.monotonic() + float(sys.argv[1]); x = 0; marked = False\n"
     "while time.monotonic() < end:\n"
     "    for _ in range(100_000):\n"
     "        x = (x * 1103515245 + 12345) & 0x7FFFFFFF\n"
+    "    if not marked:\n"
+    "        open(sys.argv[2], 'w').close(); marked = True\n"
 )
 
 
-def cpu_seconds(pid: int) -> float:
-    """User CPU time a process has used (Linux /proc); how the test knows a burner really spins."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return int(fields[11]) / os.sysconf("SC_CLK_TCK")
-
-
-def wait_spinning(burners: list[subprocess.Popen[bytes]], bound_s: float = 60.0) -> None:
-    """Until every burner has used 0.2 s of CPU (no pipe handshake: a reader blocked on a burner's pipe was
-    seen to wait out the burner on a loaded CI machine)."""
-    deadline = time.monotonic() + bound_s
-    while any(cpu_seconds(p.pid) < 0.2 for p in burners):
-        assert time.monotonic() < deadline, f"burners not spinning after {bound_s} s"
-        assert all(p.poll() is None for p in burners), "a burner exited before it spun"
+def wait_spinning(markers: list[Path], burners: list[subprocess.Popen[bytes]], bound_s: float = 60.0) -> float:
+    """Until every burner has run one loop of its spin (its marker exists); the seconds that took."""
+    t0 = time.monotonic()
+    while not all(m.exists() for m in markers):
+        waited = time.monotonic() - t0
+        assert waited < bound_s, f"burners not spinning after {waited:.0f} s ({[m.exists() for m in markers]})"
+        assert all(p.poll() is None for p in burners), f"a burner exited before it spun: {[p.poll() for p in burners]}"
         time.sleep(0.05)
+    return time.monotonic() - t0
 
 
 def usable_cores() -> int:
@@ -72,13 +71,20 @@ def usable_cores() -> int:
 @pytest.mark.timeout(2 * RUN_LIMIT_S)
 @pytest.mark.skipif(find_chromium() is None, reason="no Chromium (scripts/install-chromium.sh installs it)")
 def test_browser_tests_pass_with_every_core_busy(tmp_path: Path) -> None:
+    t0 = time.monotonic()
+    markers = [tmp_path / f"burner{i}.spinning" for i in range(usable_cores())]
     burners = [
-        subprocess.Popen([sys.executable, "-I", "-S", "-c", BURNER, str(BURN_LIMIT_S)], stdout=subprocess.DEVNULL)
-        for _ in range(usable_cores())
+        subprocess.Popen(
+            [sys.executable, "-I", "-S", "-c", BURNER, str(BURN_LIMIT_S), str(m)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+        )
+        for m in markers
     ]
     try:
         # The load is real: every burner is spinning before the browser starts.
-        wait_spinning(burners)
+        started_s = time.monotonic() - t0
+        spun_s = wait_spinning(markers, burners)
         env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
         proc = subprocess.run(
             [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *BROWSER_TESTS],
@@ -94,8 +100,10 @@ def test_browser_tests_pass_with_every_core_busy(tmp_path: Path) -> None:
             p.kill()
         for p in burners:
             p.wait(timeout=10)
+    whole_s = time.monotonic() - t0
+    timing = f"burners started in {started_s:.1f} s, spinning {spun_s:.1f} s later; whole test {whole_s:.0f} s"
     tail = (proc.stdout + proc.stderr)[-4000:]
-    assert proc.returncode == 0, f"browser tests failed under load:\n{tail}"
+    assert proc.returncode == 0, f"browser tests failed under load ({timing}):\n{tail}"
     # Every test ran (none skipped or deselected) and the cores stayed busy the whole time.
     assert " passed" in proc.stdout and "skipped" not in proc.stdout, tail
     assert ended == [None] * len(burners), f"a burner ended (exit {ended}) before the browser tests finished"
