@@ -38,6 +38,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from pilworld.io.scheduling import RealTimeGuard
+
 VideoMode = Literal["h264", "lossless", "av1"]
 VIDEO_MODES: tuple[VideoMode, ...] = ("h264", "lossless", "av1")
 
@@ -85,14 +87,18 @@ def encode_video(frames: NDArray[np.uint8], path: Path, fps: int, mode: str = "h
         stream.pix_fmt = settings.pix_fmt
         stream.options = dict(settings.options)
         stream.codec_context.time_base = Fraction(1, fps)
+        guard = RealTimeGuard()  # libsvtav1 makes its threads SCHED_FIFO 99 as root (pilworld.io.scheduling)
         for i in range(frames.shape[0]):
             frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frames[i]), format="rgb24")
             frame.pts = i
             frame.time_base = Fraction(1, fps)
             for packet in stream.encode(frame):
                 container.mux(packet)
+            if i == 0:  # the encoder opened on this frame: its threads exist now
+                guard.restore()
         for packet in stream.encode():
             container.mux(packet)
+        guard.restore()
 
 
 def resize_image(image: NDArray[np.uint8], size: tuple[int, int] | None) -> NDArray[np.uint8]:
