@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import time
 from collections.abc import Iterator
 
@@ -12,6 +14,7 @@ from hw_drivers.arm import Arm
 from hw_drivers.errors import (
     DeviceAlreadyConnectedError,
     DeviceConnectionError,
+    DeviceFaultError,
     DeviceNotConnectedError,
     DeviceProtocolError,
     DeviceTimeoutError,
@@ -167,6 +170,31 @@ def test_worker_killed_watchdog_stops_arm(arm: URArm, fake: FakeURProcess) -> No
             time.sleep(0.005)
     status = fake.wait_still()
     assert not status["program_running"] and status["q"][0] < FAR[0] - 0.1
+
+
+def test_a_paused_servo_loop_is_named_as_the_cause_of_the_watchdog_stop(arm: URArm, fake: FakeURProcess) -> None:
+    # This computer, not the controller, is at fault when the servo process cannot run for longer than the
+    # watchdog allows (0.1 s here): the error says so, with the pause, so a user looks at their PC's load.
+    assert arm._proc is not None and arm._proc.pid is not None
+    arm.set_target(FAR)
+    time.sleep(0.2)
+    os.kill(arm._proc.pid, signal.SIGSTOP)
+    time.sleep(0.4)
+    os.kill(arm._proc.pid, signal.SIGCONT)
+    t0 = time.monotonic()
+    with pytest.raises(DeviceFaultError) as caught:
+        while time.monotonic() - t0 < 5.0:
+            arm.state(max_age=10.0)
+            time.sleep(0.005)
+    message = str(caught.value)
+    assert "watchdog" in message and "the servo loop itself paused for" in message, message
+    paused = float(message.split("paused for ")[1].split(" s")[0])
+    assert paused >= 0.35, message
+    assert not fake.wait_still()["program_running"]
+    arm.recover()
+    here = arm.state().q
+    arm.set_target(here + 0.05)
+    wait_for(arm, here + 0.05)
 
 
 def test_connect_to_nothing_fails_fast() -> None:
