@@ -21,6 +21,8 @@ mode         bytes per frame  write fps     read fps     pixels
   it, browsers mostly do not. Use it wherever image metrics are computed (single-step LPIPS, paired
   real/imagined comparisons).
 * ``av1``: AV1 (SVT-AV1), yuv420p, CRF 30: LeRobot's own default; smallest files, lossy like ``h264``.
+  Run as root, SVT-AV1 makes its threads ``SCHED_FIFO`` 99; :func:`encode_video` puts them back
+  (:mod:`pilworld.io.scheduling`).
 
 Frames are written with presentation timestamps ``i / fps`` (time base ``1/fps``), so frame ``i`` of
 an episode file sits at timestamp ``i / fps`` exactly as LeRobot expects.
