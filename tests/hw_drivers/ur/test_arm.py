@@ -197,6 +197,23 @@ def test_a_paused_servo_loop_is_named_as_the_cause_of_the_watchdog_stop(arm: URA
     wait_for(arm, here + 0.05)
 
 
+def test_a_paused_fake_controller_does_not_blame_the_client(arm: URArm, fake: FakeURProcess) -> None:
+    # The fake's threads share one interpreter: after the whole fake process paused (a loaded machine), its
+    # control thread may run before its RTDE thread has applied the kicks that arrived meanwhile. Those
+    # kicks were on time, so the watchdog (0.1 s) must not stop the program; 0.3 s stays inside the
+    # client's stream_timeout (0.5 s).
+    assert fake._proc is not None and fake._proc.pid is not None
+    arm.set_target(FAR)
+    time.sleep(0.2)
+    for _ in range(3):
+        os.kill(fake._proc.pid, signal.SIGSTOP)
+        time.sleep(0.3)
+        os.kill(fake._proc.pid, signal.SIGCONT)
+        time.sleep(0.3)
+        arm.state(max_age=10.0)  # no fault: raises if the script stopped
+    assert fake.status()["program_running"]
+
+
 def test_connect_to_nothing_fails_fast() -> None:
     arm = URArm("left", random_host(), connect_timeout=2.0, retries=2)
     t0 = time.monotonic()
