@@ -235,8 +235,8 @@ class URArm:
     def servo_stats(self) -> S.ServoStats:
         """Servo-loop timing since connect or :meth:`reset_servo_stats` (the last ``RING`` periods for percentiles)."""
         snap = self._snapshot(check=False)
-        n = int(min(snap[S.RING_WRITES], S.RING))
-        periods = np.sort(S.view(self._ring_raw)[:n].copy()) * 1e3
+        periods = np.sort(self._ring_periods(snap)) * 1e3
+        n = len(periods)
         window = time.monotonic() - snap[S.STATS_T0]
 
         def pct(p: float) -> float:
@@ -300,13 +300,18 @@ class URArm:
             raise DeviceTimeoutError(self._name, f"worker process has not answered for {silent:.1f} s")
         return snap
 
+    def _ring_periods(self, snap: Any) -> NDArray[np.float64]:
+        """A copy of the servo loop's recorded periods [s] (the last ``RING`` of them, in ring order)."""
+        n = int(min(snap[S.RING_WRITES], S.RING))
+        return S.view(self._ring_raw)[:n].copy()
+
     def _pause_note(self, snap: Any) -> str:
         """Why a watchdog stop or a silent stream may be this computer's doing: the servo loop's longest
         period of its last ``RING`` cycles, when it is longer than the watchdog allows."""
-        n = int(min(snap[S.RING_WRITES], S.RING))
-        if not n:
+        periods = self._ring_periods(snap)
+        if not len(periods):
             return ""
-        longest = float(np.max(S.view(self._ring_raw)[:n]))
+        longest = float(np.max(periods))
         allowed = 1.0 / self._cfg.watchdog_hz
         if longest <= allowed:
             return f"; the servo loop kept time (longest period {longest * 1e3:.0f} ms)"
