@@ -178,13 +178,26 @@ class FakeRig:
         self._proc = ctx.Process(
             target=_serve, args=(child, self.rig_path, self.seed, self.subtask), name="fake-rig", daemon=True
         )
-        self._proc.start()
-        child.close()
+        try:
+            self._proc.start()
+        except BaseException:
+            self._proc = None  # never started: nothing to join in stop()
+            parent.close()
+            raise
+        finally:
+            child.close()
         self._conn = parent
         if not parent.poll(self.start_timeout):
             self.stop()
             raise DeviceTimeoutError("fake rig", f"did not start within {self.start_timeout} s")
-        status, payload = parent.recv()
+        try:
+            status, payload = parent.recv()
+        except EOFError:
+            # The process died before it could answer (e.g. it failed to import): say so, with its exit code.
+            self._proc.join(10.0)
+            code = self._proc.exitcode
+            self.stop()
+            raise FakeRigError("fake rig", f"its process exited during start-up (exit code {code})") from None
         if status != "ok":
             self.stop()
             raise FakeRigError("fake rig", f"failed to start:\n{payload}")
