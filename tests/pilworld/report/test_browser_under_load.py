@@ -68,6 +68,7 @@ def usable_cores() -> int:
     return max(1, cores)
 
 
+@pytest.mark.slow  # ~260 s on 2 cores: it runs every browser test again, under load
 @pytest.mark.timeout(2 * RUN_LIMIT_S)
 @pytest.mark.skipif(find_chromium() is None, reason="no Chromium (scripts/install-chromium.sh installs it)")
 def test_browser_tests_pass_with_every_core_busy(tmp_path: Path) -> None:
