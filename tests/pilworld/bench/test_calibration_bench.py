@@ -23,6 +23,7 @@ HEADLINE = (
 )
 
 
+@pytest.mark.slow  # a whole quick bench, ~20 s idle: keeps the default suite near its 15 min
 def test_quick_json_has_every_figure_and_writes_the_chart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "chart"
     assert main(["bench", "calibration", "--quick", "--json", "--no-progress", "--out", str(out)]) == 0

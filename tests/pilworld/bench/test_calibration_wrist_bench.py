@@ -9,6 +9,7 @@ import pytest
 from pilworld.bench.calibration import run_calibration_bench, wrist_degeneracy_checks, wrist_figures
 
 
+@pytest.mark.slow  # a whole quick bench, ~20 s idle: keeps the default suite near its 15 min
 def test_quick_bench_reports_the_wrist_cameras(tmp_path: Path) -> None:
     r = run_calibration_bench(quick=True, progress=False, out_dir=tmp_path)
     assert r["wrist_source"] == "synthetic"

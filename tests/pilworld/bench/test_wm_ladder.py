@@ -213,6 +213,7 @@ def _run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, 
     return code, (json.loads(lines[-1]) if code == 0 else None), out.err
 
 
+@pytest.mark.slow  # a whole quick bench, ~20 s idle: keeps the default suite near its 15 min
 def test_cli_json_and_resume(tiny_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "ladder"
     args = ["bench", "wm-ladder", "--quick", "--model", str(tiny_dir), "--tasks", TASK, "--checkpoints", CHECKPOINT]
