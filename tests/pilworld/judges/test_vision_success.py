@@ -211,69 +211,21 @@ def test_bench_on_a_collected_store(tmp_path: Path, rig: RigConfig) -> None:
         run_judge_bench(root, rig, episodes=[])
 
 
-def _head_only_rig(folder: Path) -> Path:
-    """The simulated rig without its wrist cameras: the success judge reads only the head view."""
-    import yaml
-
-    raw = yaml.safe_load(Path(SIM_RIG).read_text())
-    raw.pop("wrist_cameras")
-    raw["name"] = f"{raw['name']}_head_only"
-    path = folder / "sim_head_only.yaml"
-    path.write_text(yaml.safe_dump(raw))
-    return path
-
-
 @pytest.mark.slow
-def test_a_head_only_rig_records_the_same_head_view(tmp_path: Path) -> None:
-    """What licenses the acceptance test's shortcut: without the wrist cameras (a third of the rendering) a
-    collection is the same — head frames, states, actions and the checker's verdicts, bit for bit."""
-    from pilworld.collection.collect import collect
-    from pilworld.data.outcomes import read_outcomes
-    from pilworld.data.reader import EpisodeStore
-
-    stores = {}
-    for name, rig_path in (("full", str(SIM_RIG)), ("head", str(_head_only_rig(tmp_path)))):
-        root = tmp_path / name
-        collect(
-            root,
-            rig_path=rig_path,
-            tasks=["stack_bowls"],
-            checkpoints=["scripted_step_05k"],
-            episodes=1,
-            seed0=3_000_100,
-            workers=1,
-            progress=False,
-        )
-        stores[name] = EpisodeStore(root)
-    full, head = stores["full"], stores["head"]
-    assert full.num_episodes == head.num_episodes == 3
-    for i in range(full.num_episodes):
-        a, b = full.load(i), head.load(i)
-        assert sorted(b.images) == ["cam_high"] and len(a.images) == 3
-        assert np.array_equal(a.images["cam_high"], b.images["cam_high"])
-        assert np.array_equal(a.state, b.state) and np.array_equal(a.action, b.action)
-    verdicts = {n: [(o.episode_index, o.success) for o in read_outcomes(tmp_path / n)] for n in stores}
-    assert verdicts["full"] == verdicts["head"]
-    assert {ok for _, ok in verdicts["full"]} == {True, False}  # both outcomes compared
-
-
-@pytest.mark.slow
-@pytest.mark.timeout(1800)  # 240 simulated subtasks and their judging: ~500 s on this machine (~900 s with wrists)
+@pytest.mark.timeout(1800)  # 240 simulated subtasks and their judging: > 600 s (the suite's default) on this machine
 def test_acceptance_on_fresh_seeds(tmp_path: Path, rig: RigConfig) -> None:
     """Issue #7: ≥ 95 % agreement with the checker on ≥ 100 real-branch subtasks of seeds reserved for judge
     validation — the two fresh sets of docs/judges.md (3,000,100+ and 3,000,200+, 240 subtasks) pooled;
-    3,000,000–3,000,002 were looked at while the judge was developed and are not used. Collected on the rig
-    without wrist cameras: the same head view (the test above), a third of the rendering."""
+    3,000,000–3,000,002 were looked at while the judge was developed and are not used."""
     from pilworld.bench.judges import run_judge_bench
     from pilworld.collection.collect import collect
 
-    head_only = _head_only_rig(tmp_path)
     agree = n = 0
     for seed0 in (3_000_100, 3_000_200):
         root = tmp_path / f"judge_val_{seed0}"
         collect(
             root,
-            rig_path=str(head_only),
+            rig_path=str(SIM_RIG),
             tasks=list(TASK_SPECS),
             checkpoints=[f"scripted_step_{s}" for s in ("01k", "02k", "05k", "10k", "30k")],
             episodes=3,
