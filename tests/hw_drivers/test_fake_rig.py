@@ -56,13 +56,9 @@ def _subtask(task: str, seed: int, index: int) -> Subtask:
     return Subtask(task=task, index=index, instruction=make_task(task).instruction, seed=seed)
 
 
-def _on_sim(sub: Subtask, spec: ChunkSpec) -> tuple[bool, dict[str, np.ndarray]]:
-    """The same subtask on SimRobot directly (the fake rig's scenes start at home: no lead-in)."""
-    success, poses, _ = _on_sim_with_chunks(sub, spec)
-    return success, poses
-
-
-def _on_sim_with_chunks(sub: Subtask, spec: ChunkSpec) -> tuple[bool, dict[str, np.ndarray], list[np.ndarray]]:
+def _on_sim(sub: Subtask, spec: ChunkSpec) -> tuple[bool, dict[str, np.ndarray], list[np.ndarray]]:
+    """The same subtask on SimRobot directly (the fake rig's scenes start at home: no lead-in): the checker's
+    verdict, the object positions and the chunks the policy returned."""
     rig = RigConfig.load(SIM)
     with SimRobot(SIM, sub.task) as robot:
         start = robot.reset(seed=sub.seed, subtask=sub.index, history=0)
@@ -107,13 +103,17 @@ def _compare(task: str, seed: int, index: int) -> None:
     spec = ChunkSpec(rounds=5)
     sub = _subtask(task, seed, index)
     verdicts, poses, asked = _on_fake_rig(sub, spec)
-    success, sim_poses = _on_sim(sub, spec)
+    success, sim_poses, _ = _on_sim(sub, spec)
     assert verdicts["sim_checker"] == success, f"fake rig {verdicts}, SimRobot {success}"
     assert verdicts["operator"] is True  # the scripted operator said "y"
     assert len(asked) == 2 and "scene is ready" in asked[0] and "succeed" in asked[1]
+    _assert_objects_within(poses, sim_poses, 0.005)
+
+
+def _assert_objects_within(poses: dict[str, np.ndarray], sim_poses: dict[str, np.ndarray], bound_m: float) -> None:
     gaps = {n: float(np.linalg.norm(poses[n] - sim_poses[n])) for n in sim_poses}
-    assert max(gaps.values()) < 0.005, (
-        f"object positions differ: { {n: f'{g * 1000:.1f} mm' for n, g in gaps.items()} }"
+    assert max(gaps.values()) < bound_m, (
+        f"object positions differ: { {n: f'{g * 1000:.2f} mm' for n, g in gaps.items()} }"
     )
 
 
@@ -140,14 +140,11 @@ def test_the_simulators_commands_through_the_drivers_build_the_same_tower() -> N
     """
     sub = _subtask("stack_blocks", 12, 1)
     spec = ChunkSpec(rounds=5)
-    success, sim_poses, chunks = _on_sim_with_chunks(sub, spec)
+    success, sim_poses, chunks = _on_sim(sub, spec)
     assert success  # a finished three-block tower: the hardest placement the tasks have
     verdicts, poses = _replayed_on_fake_rig(sub, spec, chunks)
     assert verdicts["sim_checker"] is True, f"fake rig {verdicts}"
-    gaps = {n: float(np.linalg.norm(poses[n] - sim_poses[n])) for n in sim_poses}
-    assert max(gaps.values()) < 0.001, (
-        f"object positions differ: { {n: f'{g * 1000:.2f} mm' for n, g in gaps.items()} }"
-    )
+    _assert_objects_within(poses, sim_poses, 0.001)
 
 
 def test_paired_run_on_the_fake_rig_with_operator_prompts(tmp_path: Path) -> None:
