@@ -187,17 +187,11 @@ class FakeRig:
         finally:
             child.close()
         self._conn = parent
-        if not parent.poll(self.start_timeout):
-            self.stop()
-            raise DeviceTimeoutError("fake rig", f"did not start within {self.start_timeout} s")
         try:
-            status, payload = parent.recv()
-        except EOFError:
-            # The process died before it could answer (e.g. it failed to import): say so, with its exit code.
-            self._proc.join(10.0)
-            code = self._proc.exitcode
+            status, payload = self._receive("start-up", self.start_timeout, "did not start")
+        except (DeviceTimeoutError, FakeRigError):
             self.stop()
-            raise FakeRigError("fake rig", f"its process exited during start-up (exit code {code})") from None
+            raise
         if status != "ok":
             self.stop()
             raise FakeRigError("fake rig", f"failed to start:\n{payload}")
@@ -208,13 +202,33 @@ class FakeRig:
     def request(self, op: str, timeout: float = 60.0, **kwargs: Any) -> Any:
         if self._conn is None:
             raise FakeRigError("fake rig", "not started")
-        self._conn.send((op, kwargs))
-        if not self._conn.poll(timeout):
-            raise DeviceTimeoutError("fake rig", f"no answer to {op!r} within {timeout} s")
-        status, payload = self._conn.recv()
+        try:
+            self._conn.send((op, kwargs))
+        except (BrokenPipeError, EOFError, OSError):
+            raise self._exited(f"before {op!r}") from None
+        status, payload = self._receive(repr(op), timeout, f"no answer to {op!r}")
         if status != "ok":
             raise FakeRigError("fake rig", f"{op} failed:\n{payload}")
         return payload
+
+    def _receive(self, what: str, timeout: float, late: str) -> tuple[str, Any]:
+        """One reply from the process; a timeout or a dead process is a typed error, never a raw EOFError."""
+        assert self._conn is not None
+        try:
+            if not self._conn.poll(timeout):
+                raise DeviceTimeoutError("fake rig", f"{late} within {timeout} s")
+            status, payload = self._conn.recv()
+        except (EOFError, BrokenPipeError, ConnectionResetError):
+            # The process died before it answered (it failed to import, was killed, crashed): say so, with its code.
+            raise self._exited(f"during {what}") from None
+        return status, payload
+
+    def _exited(self, when: str) -> FakeRigError:
+        code = None
+        if self._proc is not None:
+            self._proc.join(10.0)
+            code = self._proc.exitcode
+        return FakeRigError("fake rig", f"its process exited {when} (exit code {code})")
 
     # What a person does at a real rig, and what only a simulator can tell.
     def reset(self, task: str, seed: int, subtask: int) -> dict[str, Any]:

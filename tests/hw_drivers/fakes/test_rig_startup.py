@@ -1,4 +1,4 @@
-"""``FakeRig`` start-up failures: a typed error that says what happened, and ``stop()`` still safe."""
+"""``FakeRig`` process failures (at start-up or mid-run): a typed error naming the exit code; ``stop()`` still safe."""
 
 from __future__ import annotations
 
@@ -30,3 +30,15 @@ def test_a_process_that_cannot_be_started_leaves_stop_safe(monkeypatch: pytest.M
     with pytest.raises(OSError, match="no more processes"):
         fake.start()
     fake.stop()  # was: AssertionError "can only join a started process"
+
+
+def test_a_process_killed_mid_run_is_a_typed_error_naming_its_exit_code() -> None:
+    import signal
+
+    with FakeRig(FAKE) as fake:
+        fake.request("state")  # alive and answering
+        os.kill(fake._proc.pid, signal.SIGKILL)
+        fake._proc.join(10.0)
+        # Whether the send still fits the pipe or fails, the caller sees one typed error with the exit code.
+        with pytest.raises(FakeRigError, match=r"exited (during|before) 'state' \(exit code -9\)"):
+            fake.request("state")
