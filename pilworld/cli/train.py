@@ -91,6 +91,20 @@ def register(sub: Any) -> None:
     comp.add_argument(
         "--stop-after", type=int, default=None, help="checkpoint and exit after this many steps (rerun to continue)"
     )
+    comp.add_argument(
+        "--cache", type=Path, default=None, help="sample cache folder (default RUN/cache; variants can share one)"
+    )
+    var = comp.add_argument_group("variants of the recipe (issue #24; docs/world_model.md, 'Variants')")
+    var.add_argument(
+        "--control",
+        default="render+prior",
+        help="control video: render+prior (shipped), render, markers (the paper's Γ) or none",
+    )
+    var.add_argument("--no-paste", action="store_true", help="leave the robot's pixels to the gates (not pasted)")
+    var.add_argument("--no-history", action="store_true", help="hide the head view's memory layer")
+    var.add_argument("--no-hands", action="store_true", help="let the gates decide at every pixel (no hand region)")
+    var.add_argument("--action-tokens", action="store_true", help="the frame's commanded action as input planes")
+    var.add_argument("--success-only", action="store_true", help="train on clips of successful episodes only")
     comp.set_defaults(handler=_composite)
 
     plot = stages.add_parser("plot", help="the training curve of a run folder as a PNG")
@@ -101,6 +115,7 @@ def register(sub: Any) -> None:
 
 
 def _composite(args: argparse.Namespace) -> int:
+    from pilworld.world_model.composite.switches import Switches
     from pilworld.world_model.composite.train import TrainSettings, train_composite
 
     for name in (
@@ -130,6 +145,14 @@ def _composite(args: argparse.Namespace) -> int:
         cache_size=args.cache_size,
         seed=args.seed,
         max_clips=args.max_clips,
+        switches=Switches(
+            control=args.control,
+            paste=not args.no_paste and args.control.startswith("render"),
+            history=not args.no_history,
+            hands=not args.no_hands,
+            action_tokens=args.action_tokens,
+        ),
+        success_only=args.success_only,
     )
     out = train_composite(
         settings,
@@ -138,6 +161,7 @@ def _composite(args: argparse.Namespace) -> int:
         validate_every=args.validate_every,
         threads=args.threads,
         stop_after=args.stop_after,
+        cache_dir=args.cache,
     )
     print(f"wrote {out}" if out is not None else f"stopped after step {args.stop_after}; rerun to continue")
     return 0

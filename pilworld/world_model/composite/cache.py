@@ -166,6 +166,16 @@ def _build(
     return row, inp, tgt, sca, grip
 
 
+def _jobs(spec: CacheSpec, ds: Any) -> list[tuple[int, int, list[int]]]:
+    """The (row, clip, frames) of every cached clip: a pure function of the seed (the extras reuse it)."""
+    rng = np.random.default_rng(spec.seed)
+    clips = np.sort(rng.choice(len(ds), min(spec.max_clips, len(ds)), replace=False))
+    K = ds.spec.future
+    return [
+        (r, int(c), sorted(rng.choice(K, spec.frames_per_clip, replace=False).tolist())) for r, c in enumerate(clips)
+    ]
+
+
 def build_cache(spec: CacheSpec, out: str | Path, *, rig: Any = None, workers: int = 2, progress: bool = True) -> Path:
     """Build (or reuse) the cache of ``spec`` in ``out``; returns the folder. ``rig``: a loaded RigConfig
     to use instead of loading ``spec.rig``."""
@@ -180,12 +190,8 @@ def build_cache(spec: CacheSpec, out: str | Path, *, rig: Any = None, workers: i
             return root
     root.mkdir(parents=True, exist_ok=True)
     ds = _clip_dataset(spec.data)
-    rng = np.random.default_rng(spec.seed)
-    clips = np.sort(rng.choice(len(ds), min(spec.max_clips, len(ds)), replace=False))
-    K = ds.spec.future
-    jobs = [
-        (r, int(c), sorted(rng.choice(K, spec.frames_per_clip, replace=False).tolist())) for r, c in enumerate(clips)
-    ]
+    jobs = _jobs(spec, ds)
+    clips = [c for _, c, _ in jobs]
     views = len(ds.views)
     per = spec.frames_per_clip * views
     n = len(jobs) * per
@@ -213,4 +219,82 @@ def build_cache(spec: CacheSpec, out: str | Path, *, rig: Any = None, workers: i
     for m in mm.values():
         m.flush()
     meta_path.write_text(json.dumps({"spec": want, "complete": True, "samples": n, "views": list(ds.views)}))
+    return root
+
+
+# ---------------------------------------------------------------------------------------------- variant extras
+
+EXTRAS = ("markers", "actions")  # what issue #24's variants add to the inputs (switches.py)
+
+
+def _init_extras(spec: CacheSpec, rig: Any) -> None:
+    from pilworld.config.rig import RigConfig
+    from pilworld.control_video.gamma import ControlVideo
+    from pilworld.types import ChunkSpec
+
+    _WORKER["ds"] = _clip_dataset(spec.data)
+    rig_cfg = rig if rig is not None else RigConfig.load(spec.rig)
+    _WORKER["gamma"] = ControlVideo.from_rig(rig_cfg, ChunkSpec(frames=_WORKER["ds"].spec.future))
+    _WORKER["spec"] = spec
+
+
+def _build_extras(job: tuple[int, int, list[int]]) -> tuple[int, NDArray[np.uint8], NDArray[np.float32]]:
+    row, clip_index, ks = job
+    ds, gamma, spec = _WORKER["ds"], _WORKER["gamma"], _WORKER["spec"]
+    it = ds[clip_index]
+    actions = it["actions"].numpy().astype(np.float64)
+    # The paper's Γ as the imagined branch draws it: the stride-aligned actions, the trace from the current state.
+    control = gamma.render_stride_aligned(actions[None], it["state"].numpy()[None])[0]
+    views = ds.views
+    n = len(ks) * len(views)
+    markers = np.zeros((n, 3, spec.size, spec.size), np.uint8)
+    acts = np.empty((n, 14), np.float32)
+    i = 0
+    for v in views:
+        for k in ks:
+            if v == "cam_high":
+                markers[i] = downsampled(control[k].transpose(2, 0, 1), spec.size)
+            acts[i] = actions[k]
+            i += 1
+    return row, markers, acts
+
+
+def has_extras(cache: str | Path) -> bool:
+    meta = Path(cache) / "extras.json"
+    return meta.is_file() and bool(json.loads(meta.read_text()).get("complete"))
+
+
+def build_extras(
+    spec: CacheSpec, cache: str | Path, *, rig: Any = None, workers: int = 2, progress: bool = True
+) -> Path:
+    """Add the variants' per-sample inputs to a complete cache of ``spec``: the head view's marker Γ at the
+    cache's size (``markers.npy``, zero in the wrist views) and the commanded action of each sample's frame
+    (``actions.npy``). Same clips and frames as the cache (:func:`_jobs`); idempotent."""
+    root = Path(cache)
+    meta = json.loads((root / "cache.json").read_text()) if (root / "cache.json").is_file() else {}
+    if not meta.get("complete") or meta.get("spec") != asdict(spec):
+        raise ValueError(f"{root}: no complete cache of these settings to add the variant inputs to")
+    if has_extras(root):
+        return root
+    ds = _clip_dataset(spec.data)
+    jobs = _jobs(spec, ds)
+    per = spec.frames_per_clip * len(ds.views)
+    n = len(jobs) * per
+    s = spec.size
+    markers = np.lib.format.open_memmap(root / "markers.npy", "w+", np.uint8, (n, 3, s, s))
+    actions = np.lib.format.open_memmap(root / "actions.npy", "w+", np.float32, (n, 14))
+    ctx = get_context("fork")
+    with ctx.Pool(workers, initializer=_init_extras, initargs=(spec, rig)) as pool:
+        for row, m, a in tqdm(
+            pool.imap_unordered(_build_extras, jobs, chunksize=8),
+            total=len(jobs),
+            desc="v2 cache: variant inputs",
+            unit="clip",
+            disable=not progress,
+        ):
+            sl = slice(row * per, (row + 1) * per)
+            markers[sl], actions[sl] = m, a
+    markers.flush()
+    actions.flush()
+    (root / "extras.json").write_text(json.dumps({"complete": True, "extras": list(EXTRAS), "samples": n}))
     return root

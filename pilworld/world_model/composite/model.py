@@ -13,7 +13,7 @@ command), which is what the policy and the judges read.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +33,7 @@ from pilworld.world_model.composite.layers import ChunkLayers, LayerBuilder
 from pilworld.world_model.composite.net import N_VIEWS, CompositeUNet, RobotPainter
 from pilworld.world_model.composite.object_draw import draw_objects, erase_elsewhere, view_cameras
 from pilworld.world_model.composite.objects import ObjectScene, estimate_scene, spec_for
+from pilworld.world_model.composite.switches import Switches, token_planes
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 
@@ -50,6 +51,7 @@ class CompositeConfig:
     history: int = 15  # H_h: one round of frames, the head view's memory of what the robot covers now
     layout: int = LAYERS_VERSION  # the layer code's version the weights were trained with (their input channels)
     objects: bool = True  # track the task's objects as rigid bodies (:mod:`.objects`); False: the blend alone
+    switches: Switches = field(default_factory=Switches)  # what of the recipe a variant keeps (default: all)
 
     def __post_init__(self) -> None:
         if self.image_size % self.work_size or self.work_size % 4:
@@ -75,7 +77,8 @@ class CompositeConfig:
                 f"composite config: the weights were trained on layer version {d.get('layout', 'before 4')}, this code "
                 f"builds version {LAYERS_VERSION}; retrain them (pilworld train composite) or use the matching release"
             )
-        return cls(**{**d, "views": tuple(d.get("views", DEFAULT_VIEWS))})
+        switches = Switches.from_dict(d.get("switches"))
+        return cls(**{**d, "views": tuple(d.get("views", DEFAULT_VIEWS)), "switches": switches})
 
     def rig_path(self) -> Path:
         p = Path(self.rig)
@@ -101,14 +104,25 @@ def _table_colour(image: NDArray[np.uint8], plate: NDArray[np.uint8]) -> NDArray
     return np.broadcast_to(rgb.astype(np.uint8), image.shape).copy()
 
 
-def net_inputs(base: torch.Tensor, scal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Base channels (N, 21, h, w) uint8 + scalars (N, 8) → network input (N, 31, h, w), commanded grips (N, 2)."""
+def net_inputs(
+    base: torch.Tensor, scal: torch.Tensor, markers: torch.Tensor | None = None, actions: torch.Tensor | None = None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Base channels (N, 26, h, w) uint8 + scalars (N, 8) → network input (N, 36, h, w), commanded grips (N, 2).
+
+    A variant's extra planes come last: ``markers`` (N, 3, h, w) uint8, the paper's Γ (zero in the wrist
+    views), then ``actions`` (N, 14), the frame's commanded action as token planes (:mod:`.switches`).
+    """
     x = base.float() / 255.0 if base.dtype == torch.uint8 else base / 255.0
     n, _, h, w = x.shape
     view = F.one_hot(scal[:, 5].long(), N_VIEWS).float()
     grips = scal[:, 6:8]
     planes = torch.cat([scal[:, :5], view, grips], 1)[:, :, None, None].expand(n, -1, h, w)
-    return torch.cat([x, planes], 1), grips
+    parts = [x, planes]
+    if markers is not None:
+        parts.append(markers.float() / 255.0 if markers.dtype == torch.uint8 else markers)
+    if actions is not None:
+        parts.append(token_planes(actions)[:, :, None, None].expand(n, -1, h, w))
+    return torch.cat(parts, 1), grips
 
 
 def _plate_at(plate: torch.Tensor, w: int) -> torch.Tensor:
@@ -160,22 +174,29 @@ def blend(
     generated: torch.Tensor,
     painter: RobotPainter,
     plate: torch.Tensor,
+    paste: bool = True,
 ) -> torch.Tensor:
     """The composite (training's, differentiable) at the resolution of the float base channels ``x`` in
-    [0, 1]; gates and generated are resized to it. Inference uses :func:`blend_bytes`, the same rounded."""
+    [0, 1]; gates and generated are resized to it. Inference uses :func:`blend_bytes`, the same rounded.
+
+    ``paste`` False (a variant): the robot is not painted from its render; its pixels are left to the gates."""
     gates, generated = _at_resolution(gates, generated, (x.shape[-2], x.shape[-1]))
     images, valid = candidates(x, generated, plate, scal[:, 5])
     # Away from the hands nothing moves: the prior where it has the pixel, else the memory; the gates decide
     # only near the tools' paths (and where neither layer has the pixel, e.g. where the robot was all round).
     prior_ok, memory_ok = valid[0], valid[5]
     kept = torch.where(prior_ok[:, None], images[0], images[5])
+    parts = x[:, _PARTS]
     free = _flag(x, 25) | ~(prior_ok | memory_ok)
+    if not paste:  # where the robot will be, the gates choose too (nothing pastes it)
+        free = free | (parts.sum(1) > 0.5)
     weights = torch.softmax(gates.masked_fill(~torch.stack(valid, 1), -1e4), 1)
     mixed = weights[:, 0:1] * images[0]
     for c in range(1, len(images)):  # a running sum: no (N, C, 3, h, w) stack of the candidates
         mixed = mixed + weights[:, c : c + 1] * images[c]
     scene = torch.where(free[:, None], mixed, kept)
-    parts = x[:, _PARTS]
+    if not paste:
+        return scene
     robot = painter(parts, x[:, _SHADE], x[:, _DEPTH], scal[:, 5])
     mask = parts.sum(1, keepdim=True).clamp(0, 1)
     out: torch.Tensor = mask * robot + (1 - mask) * scene
@@ -189,6 +210,7 @@ def blend_bytes(
     generated: torch.Tensor,
     painter: RobotPainter,
     plate: torch.Tensor,
+    paste: bool = True,
 ) -> torch.Tensor:
     """Inference's :func:`blend` on uint8 base channels, straight to uint8 frames (N, 3, h, w).
 
@@ -226,11 +248,15 @@ def blend_bytes(
     prior = images[0] if 0 in images else _image(x, 0)
     memory = images[5] if 5 in images else _image(x, 21)
     kept = torch.where(prior_ok[:, None], prior, memory)
+    onehot = x[:, _PARTS] > 127
     free = _flag(x, 25) | ~(prior_ok | memory_ok)
+    if not paste:
+        free = free | onehot.any(1)
     scene = torch.where(free[:, None], mixed, kept)
     out = (scene.clamp(0, 1) * 255.0).round().to(torch.uint8)
+    if not paste:
+        return out
     # an exact render: one part per pixel, ids 1 … 4 from the one-hot channels
-    onehot = x[:, _PARTS] > 127
     ids = (onehot * torch.arange(1, onehot.shape[1] + 1, dtype=torch.uint8)[None, :, None, None]).amax(1)
     k, yy, xx = (ids > 0).nonzero(as_tuple=True)
     if len(k):
@@ -246,7 +272,8 @@ class CompositeWorldModel(nn.Module):
     def __init__(self, config: CompositeConfig, rig: RigConfig | None = None) -> None:
         super().__init__()
         self.config = config
-        self.net = CompositeUNet(config.width, config.work_size)
+        self.switches = config.switches
+        self.net = CompositeUNet(config.width, config.work_size, config.switches.extra_channels)
         self.painter = RobotPainter()
         # The head camera's empty scene (table and background, no robot, no objects), RGB in [0, 1]: set from
         # the training data (robot-masked per-pixel median, :func:`.plate.estimate_plate`), saved with the weights.
@@ -342,10 +369,13 @@ class CompositeWorldModel(nn.Module):
         s = self.config.work_size
         # The network's input, area-averaged one channel at a time in uint8 as the training cache is.
         small = torch.from_numpy(np.stack([downsampled(row, s) for row in base_np]))
-        inp, cmd = net_inputs(small, scal)
-        gates, generated, grips = self.net(inp, cmd)
-        frames = blend_bytes(base, scal, gates, generated, self.painter, self.plate).permute(0, 2, 3, 1).numpy()
+        sw = self.switches
         K = self.config.future
+        markers, actions = self._variant_inputs(request, s) if sw.extra_channels else (None, None)
+        inp, cmd = net_inputs(sw.apply(small), scal, markers, actions)
+        gates, generated, grips = self.net(inp, cmd)
+        blended = blend_bytes(sw.apply(base), scal, gates, generated, self.painter, self.plate, sw.paste)
+        frames = blended.permute(0, 2, 3, 1).numpy()
         by_view = {v: frames[i * K : (i + 1) * K] for i, v in enumerate(self.config.views)}
         states = layers.poses.astype(np.float32).copy()
         # Each gripper's opening from its own wrist view's prediction (it sees the fingers and what they hold).
@@ -359,6 +389,21 @@ class CompositeWorldModel(nn.Module):
             if scene is self._scene:
                 self._scene_key = (request.instruction, states[-1].copy())
         return by_view, states
+
+    def _variant_inputs(self, request: PredictRequest, size: int) -> tuple[torch.Tensor | None, torch.Tensor | None]:
+        """A variant's extra inputs, view-major like the base rows: the head view's Γ at ``size`` (the
+        request's control video; zero in the wrist views) and the commanded actions of each frame."""
+        sw, K, V = self.switches, self.config.future, len(self.config.views)
+        markers = None
+        if sw.markers:
+            m = np.zeros((V * K, 3, size, size), np.uint8)
+            for k in range(K):
+                m[k] = downsampled(np.asarray(request.control[k]).transpose(2, 0, 1), size)
+            markers = torch.from_numpy(m)
+        actions = (
+            torch.from_numpy(np.tile(np.asarray(request.actions, np.float32), (V, 1))) if sw.action_tokens else None
+        )
+        return markers, actions
 
     def _objects(
         self,
@@ -437,8 +482,22 @@ class CompositeWorldModel(nn.Module):
             outs.append(torch.stack([torch.from_numpy(frames[v]).permute(0, 3, 1, 2) for v in self.config.views]))
         return torch.stack(outs)
 
-    def train_forward(self, base: torch.Tensor, scal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Training: cached base channels at ``work_size`` → (composite (N, 3, h, w), grips (N, 2))."""
-        inp, cmd = net_inputs(base, scal)
+    def train_forward(
+        self,
+        base: torch.Tensor,
+        scal: torch.Tensor,
+        markers: torch.Tensor | None = None,
+        actions: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Training: cached base channels at ``work_size`` → (composite (N, 3, h, w), grips (N, 2)); a variant's
+        switches apply here, with its ``markers`` and ``actions`` from the cache's extras."""
+        sw = self.switches
+        if sw.markers != (markers is not None) or sw.action_tokens != (actions is not None):
+            raise ValueError(
+                f"switches ({sw.describe()}): expected markers={sw.markers} and actions={sw.action_tokens}, "
+                f"got markers={markers is not None} and actions={actions is not None}"
+            )
+        x = sw.apply(base)
+        inp, cmd = net_inputs(x, scal, markers, actions)
         gates, generated, grips = self.net(inp, cmd)
-        return blend(base.float() / 255.0, scal, gates, generated, self.painter, self.plate), grips
+        return blend(x.float() / 255.0, scal, gates, generated, self.painter, self.plate, sw.paste), grips

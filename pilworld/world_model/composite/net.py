@@ -42,11 +42,12 @@ class CompositeUNet(nn.Module):
     (the composite upsamples the gates: they choose between sharp full-resolution layers).
     """
 
-    def __init__(self, width: int = 16, work: int = 32) -> None:
+    def __init__(self, width: int = 16, work: int = 32, extra: int = 0) -> None:
         super().__init__()
         w1, w2, w3 = width, 2 * width, 3 * width
         self.work = work
-        self.stem = _conv(IN_CHANNELS, w1)
+        self.in_channels = IN_CHANNELS + extra  # extra: a variant's marker or action-token planes (switches.py)
+        self.stem = _conv(self.in_channels, w1)
         self.enc2 = nn.Sequential(_conv(w1, w2), _conv(w2, w2))
         self.enc3 = nn.Sequential(_conv(w2, w3), _conv(w3, w3))
         self.dec2 = _conv(w3 + w2, w2)
@@ -61,7 +62,7 @@ class CompositeUNet(nn.Module):
             bias[0] = 2.0
 
     def forward(self, x: torch.Tensor, commanded_grip: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """x (N, IN_CHANNELS, h, w) in [0, 1] → (gate logits (N, 5, s, s), generated RGB (N, 3, s, s), grips (N, 2))."""
+        """x (N, in_channels, h, w) in [0, 1] → (gate logits (N, 5, s, s), generated RGB (N, 3, s, s), grips (N, 2))."""
         if x.shape[-1] != self.work:
             x = F.adaptive_avg_pool2d(x, self.work)
         e1 = self.stem(x)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -30,8 +30,9 @@ import torch
 from torch.nn import functional as F
 from tqdm import tqdm
 
-from pilworld.world_model.composite.cache import CacheSpec, build_cache
+from pilworld.world_model.composite.cache import CacheSpec, build_cache, build_extras
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
+from pilworld.world_model.composite.switches import Switches
 from pilworld.world_model.training.state import EMA, latest_checkpoint, load_checkpoint, save_checkpoint
 
 PHASE = "composite"
@@ -54,6 +55,8 @@ class TrainSettings:
     max_clips: int = 3000
     frames_per_clip: int = 5
     context_noise: float = 0.04
+    switches: Switches = field(default_factory=Switches)  # a variant of the recipe (issue #24; default: shipped)
+    success_only: bool = False  # train on clips of successful episodes only (a variant's data switch)
 
     # settings a resumed run may change (the schedule); any other difference is refused
     @staticmethod
@@ -66,16 +69,32 @@ def _batch_indices(pool: np.ndarray[Any, Any], seed: int, step: int, size: int) 
     return np.sort(pool[rng.integers(0, len(pool), size)])
 
 
-def _load(cache: Path) -> dict[str, np.ndarray[Any, Any]]:
-    return {
-        k: np.load(cache / f"{k}.npy", mmap_mode="r") for k in ("inputs", "targets", "scalars", "grips", "episodes")
-    }
+# What a run started before these settings existed was trained with (it may resume under them).
+_LATER_DEFAULTS = {"switches": Switches().to_dict(), "success_only": False}
+
+
+def _load(cache: Path, extras: bool = False) -> dict[str, np.ndarray[Any, Any]]:
+    names = ("inputs", "targets", "scalars", "grips", "episodes") + (("markers", "actions") if extras else ())
+    return {k: np.load(cache / f"{k}.npy", mmap_mode="r") for k in names}
 
 
 def _tensors(arrs: dict[str, np.ndarray[Any, Any]], idx: np.ndarray[Any, Any]) -> tuple[torch.Tensor, ...]:
     return tuple(
         torch.from_numpy(np.ascontiguousarray(arrs[k][idx])) for k in ("inputs", "targets", "scalars", "grips")
     )
+
+
+def _extras(
+    model: CompositeWorldModel, arrs: dict[str, np.ndarray[Any, Any]], idx: np.ndarray[Any, Any]
+) -> dict[str, torch.Tensor]:
+    """The variant's extra inputs of these samples (``train_forward``'s keyword arguments)."""
+    sw = model.switches
+    out: dict[str, torch.Tensor] = {}
+    if sw.markers:
+        out["markers"] = torch.from_numpy(np.ascontiguousarray(arrs["markers"][idx]))
+    if sw.action_tokens:
+        out["actions"] = torch.from_numpy(np.ascontiguousarray(arrs["actions"][idx]))
+    return out
 
 
 def _context_noise(base: torch.Tensor, gen: torch.Generator, sigma_max: float) -> torch.Tensor:
@@ -98,9 +117,14 @@ def _context_noise(base: torch.Tensor, gen: torch.Generator, sigma_max: float) -
 
 
 def loss_terms(
-    model: CompositeWorldModel, base: torch.Tensor, target: torch.Tensor, scal: torch.Tensor, grips: torch.Tensor
+    model: CompositeWorldModel,
+    base: torch.Tensor,
+    target: torch.Tensor,
+    scal: torch.Tensor,
+    grips: torch.Tensor,
+    extras: dict[str, torch.Tensor] | None = None,
 ) -> tuple[torch.Tensor, dict[str, float]]:
-    out, pred_grips = model.train_forward(base, scal)
+    out, pred_grips = model.train_forward(base, scal, **(extras or {}))
     tgt = target.float() / 255.0
     current = base[:, 4:7].float() / 255.0
     changed = ((tgt - current).abs().amax(1, keepdim=True) > CHANGED).float()
@@ -120,7 +144,7 @@ def validate(
     se, se_prior, se_changed, n_changed, grip_err = 0.0, 0.0, 0.0, 0.0, 0.0
     for chunk in np.array_split(idx, max(1, len(idx) // 64)):
         base, target, scal, grips = _tensors(arrs, chunk)
-        out, pg = model.train_forward(base, scal)
+        out, pg = model.train_forward(base, scal, **_extras(model, arrs, chunk))
         tgt = target.float() / 255.0
         x = base.float() / 255.0
         prior = torch.where(x[:, 3:4] > 0.5, x[:, 0:3], x[:, 4:7])
@@ -156,10 +180,13 @@ def train_composite(
     progress: bool = True,
     rig: Any = None,
     stop_after: int | None = None,
+    cache_dir: str | Path | None = None,
 ) -> Path | None:
     """Train (or resume) world model v2 into ``out``; returns ``out/model``. ``rig``: a loaded RigConfig
     to use instead of loading ``settings.rig`` (tests use small images). ``stop_after``: checkpoint and
-    return None after that many steps of the schedule (a run split across sessions; rerun to continue)."""
+    return None after that many steps of the schedule (a run split across sessions; rerun to continue).
+    ``cache_dir``: the sample cache's folder (default ``out/cache``); the variants of one recipe share one,
+    since it depends only on the data, sizes and seed."""
     from pilworld.config.rig import RigConfig
     from pilworld.world_model.composite.checkpoint import save_composite
 
@@ -171,30 +198,28 @@ def train_composite(
     want = asdict(settings)
     if settings_path.is_file():
         have = json.loads(settings_path.read_text())
-        diff = [k for k in want if k not in settings.schedule_keys() and have.get(k) != want[k]]
+        diff = [k for k in want if k not in settings.schedule_keys() and have.get(k, _LATER_DEFAULTS.get(k)) != want[k]]
         if diff:
             raise ValueError(
                 f"{root}: was started with other settings ({', '.join(f'{k}={have.get(k)!r}' for k in diff)}); "
                 "resume with the same ones or choose a new --out"
             )
     settings_path.write_text(json.dumps(want, indent=2))
-    cache = build_cache(
-        CacheSpec(
-            settings.data,
-            settings.rig,
-            settings.cache_size,
-            settings.frames_per_clip,
-            settings.max_clips,
-            settings.seed,
-        ),
-        root / "cache",
-        rig=rig,
-        progress=progress,
+    spec = CacheSpec(
+        settings.data, settings.rig, settings.cache_size, settings.frames_per_clip, settings.max_clips, settings.seed
     )
-    arrs = _load(cache)
+    cache = build_cache(spec, cache_dir or root / "cache", rig=rig, progress=progress)
+    if settings.switches.needs_extras:
+        build_extras(spec, cache, rig=rig, progress=progress)
+    arrs = _load(cache, settings.switches.needs_extras)
     episodes = np.asarray(arrs["episodes"])
     held_out = episodes % 20 == 0
-    train_pool = np.flatnonzero(~held_out)
+    keep = ~held_out
+    if settings.success_only:
+        keep &= _successful(settings.data, episodes)
+        if not keep.any():
+            raise ValueError(f"{settings.data}: no successful episode among the cached training clips (success_only)")
+    train_pool = np.flatnonzero(keep)
     val_pool = np.flatnonzero(held_out)
     val_idx = val_pool[np.random.default_rng(settings.seed + 1).permutation(len(val_pool))[:val_samples]]
     val_idx.sort()
@@ -202,9 +227,16 @@ def train_composite(
     torch.manual_seed(settings.seed)
     rig_cfg = rig if rig is not None else RigConfig.load(settings.rig)
     config = CompositeConfig(
-        rig=settings.rig, width=settings.width, work_size=settings.work_size, image_size=rig_cfg.image_size.width
+        rig=settings.rig,
+        width=settings.width,
+        work_size=settings.work_size,
+        image_size=rig_cfg.image_size.width,
+        switches=settings.switches,
     )
     model = CompositeWorldModel(config, rig_cfg)
+    if progress and (not settings.switches.shipped or settings.success_only):
+        what = settings.switches.describe() + (", success-only clips" if settings.success_only else "")
+        print(f"variant: {what}; {len(train_pool)} training samples", flush=True)
     plate_file = Path(cache) / "plate.npy"
     if not plate_file.is_file():
         from pilworld.world_model.composite.plate import estimate_plate
@@ -229,10 +261,11 @@ def train_composite(
         lr = settings.lr * min(1.0, (step + 1) / 100) * 0.5 * (1 + math.cos(math.pi * step / settings.steps))
         for g in opt.param_groups:
             g["lr"] = lr
-        base, target, scal, grips = _tensors(arrs, _batch_indices(train_pool, settings.seed, step, settings.batch))
+        idx = _batch_indices(train_pool, settings.seed, step, settings.batch)
+        base, target, scal, grips = _tensors(arrs, idx)
         gen = torch.Generator().manual_seed(settings.seed * 1_000_003 + step)
         base = _context_noise(base, gen, settings.context_noise)
-        loss, terms = loss_terms(model, base, target, scal, grips)
+        loss, terms = loss_terms(model, base, target, scal, grips, _extras(model, arrs, idx))
         opt.zero_grad(set_to_none=True)
         loss.backward()  # type: ignore[no-untyped-call]
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
@@ -270,3 +303,11 @@ def train_composite(
         for k, p in params.items():
             p.copy_(ema.shadow[k])
     return save_composite(model, root / "model")
+
+
+def _successful(data: str, episodes: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    """Per sample: its episode succeeded (by the dataset's recorded outcomes; unknown counts as not)."""
+    from pilworld.data.clip_dataset import episode_success
+
+    ok = episode_success(Path(data), int(episodes.max()) + 1, None)
+    return np.asarray(ok[episodes] == 1)
