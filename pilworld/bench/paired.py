@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.bench.common import machine_info
-from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants
+from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants, v2_variants
 
 QUICK_CHECKPOINTS = ("scripted_step_01k", "scripted_step_30k")
 QUICK_SUBTASKS = 3
@@ -74,7 +74,7 @@ def custom_variant(spec: str) -> ModelVariant:
     name, path = name.strip(), path.strip()
     if not sep or not name or not path:
         raise ValueError(f"--variants: expected a known name or NAME=PATH, got {spec!r}")
-    if name in {v.name for v in standard_variants()}:
+    if name in {v.name for v in standard_variants() + v2_variants()}:
         raise ValueError(f"--variants: {name!r} is a standard variant's name; give your model another name")
     v = ModelVariant(name, f"{name} ({path})", path, adapter="none", role="model", note=f"user model {path}")
     v.check()
@@ -86,7 +86,7 @@ def select_variants(quick: bool, names: Sequence[str] | None = None) -> list[Mod
 
     A name of the form ``NAME=PATH`` adds the model folder at PATH as variant NAME (:func:`custom_variant`).
     """
-    every = {v.name: v for v in standard_variants()}
+    every = {v.name: v for v in standard_variants() + v2_variants()}  # issue #24's rows: by name until trained
     if names:
         unknown = [n for n in names if n not in every and "=" not in n]
         if unknown:
@@ -99,7 +99,7 @@ def select_variants(quick: bool, names: Sequence[str] | None = None) -> list[Mod
         if "pilworld" not in names:
             chosen.insert(0, every["pilworld"])  # the headline figures are the shipped model's
         return chosen
-    return [every["pilworld"], every["ctrl_world"]] if quick else list(every.values())
+    return [every["pilworld"], every["ctrl_world"]] if quick else standard_variants()
 
 
 def _pick(d: dict[str, Any], keys: Sequence[str]) -> dict[str, Any]:

@@ -44,6 +44,7 @@ class ModelVariant:
     resize: bool = False  # run a model of another image size resized to the rig's
     role: str = "model"  # "shipped" | "baseline" | "ablation" | "reference" | "model"
     note: str = ""
+    trained_by: str = ""  # the command that makes the weights (named when they are missing)
 
     def __post_init__(self) -> None:
         if not self.name or any(c in self.name for c in "/\\ ") or self.name.startswith("."):
@@ -56,7 +57,7 @@ class ModelVariant:
         if self.world_model and not (Path(self.world_model) / "config.json").is_file():
             raise FileNotFoundError(
                 f"variant {self.name!r}: no world model at {self.world_model} (config.json missing); "
-                "see docs/RESULTS.md for the command that trains it"
+                + (f"make it with {self.trained_by}" if self.trained_by else "see docs/RESULTS.md for the command")
             )
 
 
@@ -117,6 +118,36 @@ def standard_variants() -> list[ModelVariant]:
             role="ablation",
             note="v1's stage-1 weights; stage 2 (150 LoRA steps per task) on successful clips only",
         ),
+    ]
+
+
+# Issue #24: v2's recipe at equal budget (same data, cache, steps, network), one switch each
+# (pilworld/world_model/composite/switches.py; scripts/train-bench-variants makes the weights).
+V2_VARIANTS: tuple[tuple[str, str, str], ...] = (
+    ("v2_paper_gamma", "paper-faithful: the paper's marker Γ (head view), no memory, no hand region", "baseline"),
+    ("v2_ctrl_world", "Ctrl-World-style: per-frame action tokens, no control video", "baseline"),
+    ("v2_markers", "Γ⁺ ablation: markers instead of the render (v2's memory and hand region kept)", "ablation"),
+    ("v2_render", "Γ⁺ ablation: robot render only (no reprojection prior, robot not pasted)", "ablation"),
+    ("v2_render_prior", "Γ⁺ ablation: render + reprojection prior (robot not pasted)", "ablation"),
+    ("v2_no_history", "− history: the memory layer hidden in training and inference", "ablation"),
+    ("v2_success_only", "− failure data: trained on clips of successful episodes only", "ablation"),
+    ("v2_tokens", "+ action tokens: v2 with the frame's commanded action as extra inputs", "ablation"),
+)
+
+
+def v2_variants() -> list[ModelVariant]:
+    """Issue #24's rows: v2's recipe with one switch each, weights in ``weights/bench/<name>``."""
+    return [
+        ModelVariant(
+            name,
+            label,
+            bench_model(name),
+            adapter="none",
+            role=role,
+            note=f"trained by v2's recipe with one switch (weights/bench/{name}/COMMAND.txt)",
+            trained_by=f"scripts/train-bench-variants {name}",
+        )
+        for name, label, role in V2_VARIANTS
     ]
 
 

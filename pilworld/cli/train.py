@@ -94,6 +94,9 @@ def register(sub: Any) -> None:
     comp.add_argument(
         "--cache", type=Path, default=None, help="sample cache folder (default RUN/cache; variants can share one)"
     )
+    comp.add_argument(
+        "--cache-only", action="store_true", help="build the sample cache (with the variants' inputs) and exit"
+    )
     var = comp.add_argument_group("variants of the recipe (issue #24; docs/world_model.md, 'Variants')")
     var.add_argument(
         "--control",
@@ -162,8 +165,12 @@ def _composite(args: argparse.Namespace) -> int:
         threads=args.threads,
         stop_after=args.stop_after,
         cache_dir=args.cache,
+        cache_only=args.cache_only,
     )
-    print(f"wrote {out}" if out is not None else f"stopped after step {args.stop_after}; rerun to continue")
+    if args.cache_only:
+        print(f"sample cache ready in {args.cache or args.out / 'cache'}")
+    else:
+        print(f"wrote {out}" if out is not None else f"stopped after step {args.stop_after}; rerun to continue")
     return 0
 
 

@@ -181,12 +181,14 @@ def train_composite(
     rig: Any = None,
     stop_after: int | None = None,
     cache_dir: str | Path | None = None,
+    cache_only: bool = False,
 ) -> Path | None:
     """Train (or resume) world model v2 into ``out``; returns ``out/model``. ``rig``: a loaded RigConfig
     to use instead of loading ``settings.rig`` (tests use small images). ``stop_after``: checkpoint and
     return None after that many steps of the schedule (a run split across sessions; rerun to continue).
     ``cache_dir``: the sample cache's folder (default ``out/cache``); the variants of one recipe share one,
-    since it depends only on the data, sizes and seed."""
+    since it depends only on the data, sizes and seed. ``cache_only``: build the cache (with the variants'
+    extra inputs) and return None, training nothing."""
     from pilworld.config.rig import RigConfig
     from pilworld.world_model.composite.checkpoint import save_composite
 
@@ -209,8 +211,10 @@ def train_composite(
         settings.data, settings.rig, settings.cache_size, settings.frames_per_clip, settings.max_clips, settings.seed
     )
     cache = build_cache(spec, cache_dir or root / "cache", rig=rig, progress=progress)
-    if settings.switches.needs_extras:
+    if settings.switches.needs_extras or cache_only:
         build_extras(spec, cache, rig=rig, progress=progress)
+    if cache_only:
+        return None
     arrs = _load(cache, settings.switches.needs_extras)
     episodes = np.asarray(arrs["episodes"])
     held_out = episodes % 20 == 0

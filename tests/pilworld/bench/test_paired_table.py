@@ -46,6 +46,24 @@ def _one_pair(quick: bool, *, subtasks: int | None = None, seed: int | None = No
 # ---------------------------------------------------------------------- variants and protocol
 
 
+def test_the_equal_budget_v2_variants_are_selectable_and_name_their_training_command(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    from pilworld.bench import variants as variants_module
+    from pilworld.bench.variants import V2_VARIANTS, v2_variants
+
+    names = [v.name for v in v2_variants()]
+    assert names == [n for n, _, _ in V2_VARIANTS] and len(set(names)) == len(names) == 8
+    assert not set(names) & {v.name for v in standard_variants()}
+    monkeypatch.setattr(variants_module, "BENCH_WEIGHTS", tmp_path)  # no weights there
+    chosen = select_variants(True, ["v2_render"])
+    assert [v.name for v in chosen] == ["pilworld", "v2_render"] and chosen[1].adapter == "none"
+    with pytest.raises(FileNotFoundError, match=r"make it with scripts/train-bench-variants v2_render"):
+        chosen[1].check()
+    with pytest.raises(ValueError, match="standard variant's name"):
+        select_variants(True, ["v2_render=/some/model"])
+
+
 def test_select_variants_by_mode_and_by_name() -> None:
     assert [v.name for v in select_variants(True)] == ["pilworld", "ctrl_world"]
     assert [v.name for v in select_variants(False)] == [v.name for v in standard_variants()]
