@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -9,7 +10,6 @@ import numpy as np
 import pytest
 import torch
 
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT, ChunkSpec
 from pilworld.world_model.base import PredictRequest
@@ -22,6 +22,7 @@ from pilworld.world_model.composite.switches import Switches
 from pilworld.world_model.composite.train import TrainSettings, _successful, train_composite
 
 from ..training.synthetic_data import write_dataset
+from .test_model import _request as model_request
 
 SPEC = ChunkSpec()
 LEFT_ARM, _ = ARM_LAYOUT["left"]
@@ -91,19 +92,10 @@ def test_without_paste_the_robots_pixels_come_from_the_gates() -> None:
 
 
 def _request(model: CompositeWorldModel, seed: int = 0) -> PredictRequest:
+    """test_model's request, with a random control video (the markers variant reads it)."""
     rng = np.random.default_rng(seed)
-    q = HOME_Q14.astype(np.float64).copy()
-    stride = np.repeat(q[None], SPEC.frames, 0)
-    stride[:, LEFT_ARM.start] += np.linspace(0.0, -0.4, SPEC.frames)
-    return PredictRequest.build(
-        model.info,
-        current={v: rng.integers(0, 255, (32, 32, 3), dtype=np.uint8) for v in model.info.views},
-        history=None,
-        control=rng.integers(0, 255, (SPEC.frames, 32, 32, 3), dtype=np.uint8),
-        actions=stride,
-        instruction="sort the cubes.",
-        state=q,
-    )
+    control = rng.integers(0, 255, (SPEC.frames, 32, 32, 3), dtype=np.uint8)
+    return dataclasses.replace(model_request(model), control=control)
 
 
 @pytest.mark.parametrize(
