@@ -176,6 +176,37 @@ def _jobs(spec: CacheSpec, ds: Any) -> list[tuple[int, int, list[int]]]:
     ]
 
 
+def _fill(
+    arrays: Sequence[Any],
+    build: Any,
+    init: Any,
+    initargs: tuple[Any, ...],
+    jobs: list[tuple[int, int, list[int]]],
+    per: int,
+    *,
+    workers: int,
+    chunksize: int,
+    desc: str,
+    progress: bool,
+) -> None:
+    """Run ``build`` over the clip jobs in a pool of forked workers and write each clip's rows into ``arrays``
+    (``build`` returns ``(row, *parts)``, one part per array, ``per`` samples each); then flush them."""
+    ctx = get_context("fork")
+    with ctx.Pool(workers, initializer=init, initargs=initargs) as pool:
+        for row, *parts in tqdm(
+            pool.imap_unordered(build, jobs, chunksize=chunksize),
+            total=len(jobs),
+            desc=desc,
+            unit="clip",
+            disable=not progress,
+        ):
+            sl = slice(row * per, (row + 1) * per)
+            for array, part in zip(arrays, parts, strict=True):
+                array[sl] = part
+    for array in arrays:
+        array.flush()
+
+
 def build_cache(spec: CacheSpec, out: str | Path, *, rig: Any = None, workers: int = 2, progress: bool = True) -> Path:
     """Build (or reuse) the cache of ``spec`` in ``out``; returns the folder. ``rig``: a loaded RigConfig
     to use instead of loading ``spec.rig``."""
@@ -205,19 +236,10 @@ def build_cache(spec: CacheSpec, out: str | Path, *, rig: Any = None, workers: i
     episodes = np.repeat(np.array([ds.clips[c].episode_index for c in clips]), per)
     np.save(root / "episodes.npy", episodes)
     meta_path.write_text(json.dumps({"spec": want, "complete": False, "samples": n}))
-    ctx = get_context("fork")
-    with ctx.Pool(workers, initializer=_init, initargs=(spec, rig)) as pool:
-        for row, inp, tgt, sca, grip in tqdm(
-            pool.imap_unordered(_build, jobs, chunksize=4),
-            total=len(jobs),
-            desc="v2 cache",
-            unit="clip",
-            disable=not progress,
-        ):
-            sl = slice(row * per, (row + 1) * per)
-            mm["inputs"][sl], mm["targets"][sl], mm["scalars"][sl], mm["grips"][sl] = inp, tgt, sca, grip
-    for m in mm.values():
-        m.flush()
+    arrays = [mm["inputs"], mm["targets"], mm["scalars"], mm["grips"]]  # _build's order
+    _fill(
+        arrays, _build, _init, (spec, rig), jobs, per, workers=workers, chunksize=4, desc="v2 cache", progress=progress
+    )
     meta_path.write_text(json.dumps({"spec": want, "complete": True, "samples": n, "views": list(ds.views)}))
     return root
 
@@ -283,18 +305,17 @@ def build_extras(
     s = spec.size
     markers = np.lib.format.open_memmap(root / "markers.npy", "w+", np.uint8, (n, 3, s, s))
     actions = np.lib.format.open_memmap(root / "actions.npy", "w+", np.float32, (n, 14))
-    ctx = get_context("fork")
-    with ctx.Pool(workers, initializer=_init_extras, initargs=(spec, rig)) as pool:
-        for row, m, a in tqdm(
-            pool.imap_unordered(_build_extras, jobs, chunksize=8),
-            total=len(jobs),
-            desc="v2 cache: variant inputs",
-            unit="clip",
-            disable=not progress,
-        ):
-            sl = slice(row * per, (row + 1) * per)
-            markers[sl], actions[sl] = m, a
-    markers.flush()
-    actions.flush()
+    _fill(
+        [markers, actions],
+        _build_extras,
+        _init_extras,
+        (spec, rig),
+        jobs,
+        per,
+        workers=workers,
+        chunksize=8,
+        desc="v2 cache: variant inputs",
+        progress=progress,
+    )
     (root / "extras.json").write_text(json.dumps({"complete": True, "extras": list(EXTRAS), "samples": n}))
     return root

@@ -272,7 +272,6 @@ class CompositeWorldModel(nn.Module):
     def __init__(self, config: CompositeConfig, rig: RigConfig | None = None) -> None:
         super().__init__()
         self.config = config
-        self.switches = config.switches
         self.net = CompositeUNet(config.width, config.work_size, config.switches.extra_channels)
         self.painter = RobotPainter()
         # The head camera's empty scene (table and background, no robot, no objects), RGB in [0, 1]: set from
@@ -283,6 +282,10 @@ class CompositeWorldModel(nn.Module):
         self._builder: LayerBuilder | None = None
         self._scene: ObjectScene | None = None  # the rollout's objects (begin_rollout), advanced per chunk
         self._scene_key: tuple[str, NDArray[np.float32]] | None = None  # the request that continues it
+
+    @property
+    def switches(self) -> Switches:
+        return self.config.switches
 
     @property
     def info(self) -> WorldModelInfo:

@@ -34,6 +34,8 @@ from typing import Any, Final
 import numpy as np
 import torch
 
+from pilworld.world_model.composite.cache import GRIPS
+
 CONTROLS: Final = ("render+prior", "render", "markers", "none")
 MARKER_CHANNELS: Final = 3
 TOKEN_CHANNELS: Final = 14
@@ -133,8 +135,6 @@ class Switches:
 
 def token_planes(actions: torch.Tensor) -> torch.Tensor:
     """(N, 14) commanded actions → (N, 14) token values: joints / π, grips as they are."""
-    from pilworld.world_model.composite.cache import GRIPS
-
     t = actions.float() / JOINT_SCALE
     t[:, GRIPS] = actions[:, GRIPS].float()
     return t
