@@ -1,15 +1,18 @@
-"""``pilworld bench paired``: the paper's table on the simulated rig — ours, the baseline and the ablations.
+"""``pilworld bench paired``: the paper's table on the simulated rig — v2 and its equal-budget variants.
 
-For every variant of :func:`~pilworld.bench.variants.standard_variants` (the shipped PiL-World model,
-the Ctrl-World-style baseline, our recipe at the baseline's training budget, no history, success-only
-data) the same pairs run in closed loop (:func:`~pilworld.bench.variants.evaluate_variants`; the real
-branches once), are judged by the image-only judge, and give per task SR_real, SR_imag, |ΔSR| and HFR,
-and across task × checkpoint settings Pearson, Spearman and MMRV — all with bootstrap intervals — plus
-single-step PSNR / SSIM per view from each pair's first round.
+For every variant of :data:`FULL_VARIANTS` (the shipped world model v2 and v2's recipe with one switch each:
+the paper-faithful marker Γ, the Ctrl-World-style action tokens, the Γ⁺ ablations, no history, success-only
+data, + action tokens; weights in ``weights/bench/v2_*``) the same pairs run in closed loop
+(:func:`~pilworld.bench.variants.evaluate_variants`; the real branches once, copied into every variant's run),
+are judged by the image-only judge, and give per task SR_real, SR_imag, |ΔSR| and HFR, and across
+task × checkpoint settings Pearson, Spearman and MMRV — all with bootstrap intervals — plus per-pair agreement
+(real successes also imagined, real failures also imagined; Wilson intervals), single-step PSNR / SSIM per
+view from each pair's first round, and the paper's claims as paired comparisons (:mod:`pilworld.bench.claims`).
 
-``--quick`` (≤ 5 minutes on a 2-core CPU): 3 tasks × 2 checkpoints × 3 subtasks, the shipped model and the
-baseline. The full protocol: 3 tasks × 5 checkpoints × 20 subtasks, every variant (docs/RESULTS.md).
-Layouts come from seed 6,000,000 on (reserved for this benchmark; training used 0–19).
+``--quick`` (≤ 5 minutes on a 2-core CPU): 3 tasks × 2 checkpoints × 3 subtasks, :data:`QUICK_VARIANTS`. The
+full protocol: 3 tasks × 5 checkpoints × 20 subtasks = 300 pairs per variant (docs/RESULTS.md). Layouts come
+from seed 6,000,000 on (reserved for this benchmark; training used 0–19). v1 and its baselines of 2026-11-22
+run by name (``--variants pilworld_v1,ctrl_world,pilworld_3500,no_history,success_only``).
 """
 
 from __future__ import annotations
@@ -19,11 +22,28 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from pilworld.bench.claims import Verdicts, agreement, paper_claims
 from pilworld.bench.common import machine_info
 from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants, v2_variants
 
 QUICK_CHECKPOINTS = ("scripted_step_01k", "scripted_step_30k")
 QUICK_SUBTASKS = 3
+# Issue #24's table: the shipped v2 and its equal-budget variants (v2's recipe, one switch each). v1 and its
+# 2026-11-22 baselines stay selectable by name (``--variants pilworld_v1,ctrl_world,...``).
+FULL_VARIANTS = (
+    "pilworld",
+    "v2_paper_gamma",
+    "v2_ctrl_world",
+    "v2_markers",
+    "v2_render",
+    "v2_render_prior",
+    "v2_no_history",
+    "v2_success_only",
+    "v2_tokens",
+)
+QUICK_VARIANTS = ("pilworld", "v2_paper_gamma", "v2_ctrl_world")
+# The Γ⁺ ablation rows, from the paper's markers to the shipped render + prior + paste.
+GAMMA_PLUS_ROWS = ("v2_markers", "v2_render", "v2_render_prior", "pilworld")
 FULL_SUBTASKS = 20
 # Our targets and the paper's figures (docs/RESULTS.md; paper Table 1, average over tasks).
 TARGETS = {"abs_delta_sr": 0.05, "hfr": 0.85, "pearson": 0.95}
@@ -82,7 +102,7 @@ def custom_variant(spec: str) -> ModelVariant:
 
 
 def select_variants(quick: bool, names: Sequence[str] | None = None) -> list[ModelVariant]:
-    """The variants to run: ``names`` (in that order) or, by mode, shipped + baseline (quick) / all (full).
+    """The variants to run: ``names`` (in that order) or, by mode, :data:`QUICK_VARIANTS` / :data:`FULL_VARIANTS`.
 
     A name of the form ``NAME=PATH`` adds the model folder at PATH as variant NAME (:func:`custom_variant`).
     """
@@ -99,7 +119,9 @@ def select_variants(quick: bool, names: Sequence[str] | None = None) -> list[Mod
         if "pilworld" not in names:
             chosen.insert(0, every["pilworld"])  # the headline figures are the shipped model's
         return chosen
-    return [every["pilworld"], every["ctrl_world"]] if quick else standard_variants()
+    if quick:
+        return [every[n] for n in QUICK_VARIANTS]
+    return [every[n] for n in FULL_VARIANTS]
 
 
 def _pick(d: dict[str, Any], keys: Sequence[str]) -> dict[str, Any]:
@@ -132,6 +154,7 @@ def summarize_variant(result: dict[str, Any]) -> dict[str, Any]:
             "reason": single.get("reason"),
         },
         "failure_faithfulness": failure_faithfulness(result["out"]),
+        "agreement": agreement(Verdicts.load(result["out"])),
         "imagined_seconds_per_subtask": result.get("imagined_seconds_per_subtask"),
         "stages_s": result["stages_s"],
         "out": result["out"],
@@ -197,4 +220,7 @@ def run_paired_bench(
     }
     baseline = next((name for name, r in rows.items() if r["role"] == "baseline"), None)
     out_json["baseline"] = rows[baseline] if baseline else None
+    out_json["gamma_plus_rows"] = [n for n in GAMMA_PLUS_ROWS if n in rows]
+    # The paper's directions, each a paired comparison on the same pairs (pilworld.bench.claims).
+    out_json["claims"] = paper_claims({name: Verdicts.load(r["out"]) for name, r in rows.items()})
     return out_json

@@ -24,7 +24,7 @@ from pilworld.bench.paired import (
     run_paired_bench,
     select_variants,
 )
-from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants
+from pilworld.bench.variants import V2_VARIANTS, ModelVariant, PairedProtocol, evaluate_variants, standard_variants
 from pilworld.cli.bench import DEFAULT_RIG
 from pilworld.cli.main import main
 from pilworld.data.outcomes import Outcome, record_outcomes
@@ -50,7 +50,7 @@ def test_the_equal_budget_v2_variants_are_selectable_and_name_their_training_com
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     from pilworld.bench import variants as variants_module
-    from pilworld.bench.variants import V2_VARIANTS, v2_variants
+    from pilworld.bench.variants import v2_variants
 
     names = [v.name for v in v2_variants()]
     assert names == [n for n, _, _ in V2_VARIANTS] and len(set(names)) == len(names) == 8
@@ -65,10 +65,15 @@ def test_the_equal_budget_v2_variants_are_selectable_and_name_their_training_com
 
 
 def test_select_variants_by_mode_and_by_name() -> None:
-    assert [v.name for v in select_variants(True)] == ["pilworld", "ctrl_world"]
-    assert [v.name for v in select_variants(False)] == [v.name for v in standard_variants()]
-    assert len(select_variants(False)) == 6  # with the v2 row (issue #21)
-    assert select_variants(False)[1].name == "pilworld_v1"
+    assert [v.name for v in select_variants(True)] == ["pilworld", "v2_paper_gamma", "v2_ctrl_world"]
+    full = select_variants(False)  # issue #24: the shipped v2 and its eight equal-budget variants
+    assert [v.name for v in full] == ["pilworld"] + [n for n, _, _ in V2_VARIANTS]
+    assert all(v.world_model.endswith(f"weights/bench/{v.name}") for v in full[1:])
+    assert [v.name for v in full if v.role == "baseline"] == ["v2_paper_gamma", "v2_ctrl_world"]
+    for v in full:
+        v.check()  # every weights folder is committed
+    # v1 and its 2026-11-22 baselines stay selectable by name.
+    assert [v.name for v in select_variants(False, ["pilworld_v1"])] == ["pilworld", "pilworld_v1"]
     # The shipped model is always there (first when not named), named variants keep their order.
     assert [v.name for v in select_variants(True, ["no_history"])] == ["pilworld", "no_history"]
     assert [v.name for v in select_variants(False, ["success_only", "no_history"])] == [
@@ -175,6 +180,8 @@ def test_table_json_has_the_headline_figures(table: tuple[Path, dict[str, Any], 
     assert list(r["variants"]) == ["pilworld", "no_history"]
     assert r["overall"] == r["variants"]["pilworld"]["overall"]  # the headline is the shipped model's
     assert r["baseline"] is None  # no baseline variant chosen
+    assert r["claims"] == []  # no claim's two variants were run
+    assert r["gamma_plus_rows"] == ["pilworld"]
     assert r["targets"] == TARGETS
     assert r["chart"] == str(out / "paired.png")
 
@@ -200,6 +207,10 @@ def test_each_variant_row(table: tuple[Path, dict[str, Any], str]) -> None:
     for row in (ours, ablation):
         ff = row["failure_faithfulness"]
         assert ff["real_failures"] + ff["real_successes"] == 1
+        agree = row["agreement"]
+        assert agree["successes"]["n"] + agree["failures"]["n"] == 1 and agree["all"]["n"] == 1
+        assert agree["successes"]["n"] == ff["real_successes"]
+        assert list(agree["tasks"]) == ["sort_cubes"]
         assert set(row["single_step"]["per_view"]) == {"cam_high", "cam_left_wrist", "cam_right_wrist"}
         assert row["single_step"]["pairs_used"] == 1
         assert row["imagined_seconds_per_subtask"]["n"] == 1
