@@ -13,12 +13,20 @@ from __future__ import annotations
 
 import platform
 import time
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from pilworld.types import ChunkSpec
+from pilworld.config.rig import RigConfig
+from pilworld.types import ChunkSpec, RobotSpec, Start
+
+if TYPE_CHECKING:
+    from pilworld.envs import ImaginedEnv
+    from pilworld.world_model.base import WorldModel
 
 START_SEED = 8_500_000  # a layout no training or other bench uses
 
@@ -40,20 +48,22 @@ def parse_models(text: str) -> dict[str, str]:
     return out
 
 
-def run_chunk_latency(
-    models: dict[str, str], *, rig: str | Path, task: str = "sort_cubes", repeats: int = 20, warmup: int = 2
-) -> dict[str, Any]:
-    from hw_drivers.safety import SafetyFilter
-    from hw_drivers.sim.robot import SimRobot
-    from pilworld.config.rig import RigConfig
-    from pilworld.control_video.gamma import ControlVideo
-    from pilworld.envs import ImaginedEnv
-    from pilworld.policies.registry import make_policy
-    from pilworld.types import Subtask
-    from pilworld.world_model.checkpoint import adapter_names, load_world_model
+@dataclass(frozen=True)
+class RoundSetup:
+    """One imagined round's inputs: a simulated start, the scripted policy's chunk from it, the rig."""
 
-    if repeats < 1:
-        raise ValueError(f"--repeats: expected at least 1, got {repeats}")
+    start: Start
+    chunk: NDArray[np.float32]  # the policy's chunk, as ImaginedEnv.step takes it
+    rig: RigConfig
+    spec: ChunkSpec
+    robot_spec: RobotSpec
+
+
+def round_setup(rig: str | Path, task: str = "sort_cubes") -> RoundSetup:
+    """The start (layout :data:`START_SEED`, subtask 0 of ``task``) and the best scripted checkpoint's chunk."""
+    from hw_drivers.sim.robot import SimRobot
+    from pilworld.policies.registry import make_policy
+
     spec = ChunkSpec()
     rig_cfg = RigConfig.load(rig)
     robot = SimRobot(rig, task)
@@ -65,26 +75,55 @@ def run_chunk_latency(
         robot.disconnect()
     policy = make_policy("scripted_step_30k", rig_cfg, spec)
     policy.reset(seed=START_SEED)
-    sub: Subtask = start.subtask
-    chunk = policy.infer(start.observation, sub.instruction)
-    envs = {}
-    for name, path in models.items():
-        adapter = task if task in adapter_names(path) else None
-        model = load_world_model(path, adapter=adapter)
-        bind = getattr(model, "bind_rig", None)
-        if callable(bind):
-            bind(rig_cfg)
-        env = ImaginedEnv(model, ControlVideo.from_rig(rig_cfg, spec), spec, safety=SafetyFilter(spec_robot))
-        envs[name] = env
+    chunk = policy.infer(start.observation, start.subtask.instruction)
+    return RoundSetup(start, chunk, rig_cfg, spec, spec_robot)
+
+
+def imagined_env(model: WorldModel, setup: RoundSetup, *, steps: int | None = None) -> ImaginedEnv:
+    """``model``'s imagined branch as the paired runner builds it (v2 bound to the rig's geometry)."""
+    from hw_drivers.safety import SafetyFilter
+    from pilworld.control_video.gamma import ControlVideo
+    from pilworld.envs import ImaginedEnv
+
+    bind = getattr(model, "bind_rig", None)
+    if callable(bind):
+        bind(setup.rig)
+    gamma = ControlVideo.from_rig(setup.rig, setup.spec)
+    return ImaginedEnv(model, gamma, setup.spec, steps=steps, safety=SafetyFilter(setup.robot_spec))
+
+
+def time_rounds(
+    envs: Mapping[str, ImaginedEnv], setup: RoundSetup, *, repeats: int, warmup: int = 2
+) -> dict[str, list[float]]:
+    """Milliseconds of ``repeats`` rounds (``env.step(chunk)`` from the reset start) per env, after ``warmup``
+    untimed ones; round-robin, one call of each env in turn, so a machine that slows down slows all alike."""
+    if repeats < 1:
+        raise ValueError(f"repeats: expected at least 1, got {repeats}")
     times: dict[str, list[float]] = {n: [] for n in envs}
     for i in range(warmup + repeats):
         for name, env in envs.items():
-            env.reset(start)
+            env.reset(setup.start)
             t0 = time.perf_counter()
-            env.step(chunk)
+            env.step(setup.chunk)
             dt = time.perf_counter() - t0
             if i >= warmup:
                 times[name].append(dt * 1000.0)
+    return times
+
+
+def run_chunk_latency(
+    models: dict[str, str], *, rig: str | Path, task: str = "sort_cubes", repeats: int = 20, warmup: int = 2
+) -> dict[str, Any]:
+    from pilworld.world_model.checkpoint import adapter_names, load_world_model
+
+    if repeats < 1:
+        raise ValueError(f"--repeats: expected at least 1, got {repeats}")
+    setup = round_setup(rig, task)
+    envs = {}
+    for name, path in models.items():
+        adapter = task if task in adapter_names(path) else None
+        envs[name] = imagined_env(load_world_model(path, adapter=adapter), setup)
+    times = time_rounds(envs, setup, repeats=repeats, warmup=warmup)
     first = next(iter(times))
     med = {n: float(np.median(t)) for n, t in times.items()}
     return {

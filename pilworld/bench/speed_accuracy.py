@@ -1,121 +1,362 @@
-"""``pilworld bench speed-accuracy``: world-model presets × resolutions × sampling steps, latency against error.
+"""``pilworld bench speed-accuracy``: chunk latency against closed-loop accuracy, for every model size and step count.
 
-Every **point** is one trained model run with one number of Euler steps (1, 2, 4, 8, 16):
+The question (issue #24): which is the **smallest model that predicts closed-loop outcomes**, and what does
+each step up in size or in sampling steps buy? Accuracy here is what the bench is for — whether the imagined
+branch reaches the real branch's verdict — so the front and the knee are chosen on closed-loop |ΔSR| and HFR;
+single-step image error is kept as a secondary column (it ranked v1's presets, and v1 fails every rollout).
 
-* ``chunk_latency_ms`` — median of batch-1 ``predict`` calls (K frames × 3 views), as the imagined
-  branch calls it, at the rig's 128×128 (a model trained at a lower resolution runs through
-  :class:`~pilworld.world_model.resized.ResizedWorldModel`, so its resizing is in the time);
-* single-step accuracy on held-out clips (seeds 1,000,000+; :mod:`pilworld.bench.world_model`), scored
-  **at the rig's resolution** for every model (a 32×32 model's frames upsampled to 128×128 — the size the
-  judges see), so points of different resolutions compare: head-view pooled PSNR and SSIM;
-* without ``--quick``: |ΔSR| and HFR in closed loop on a small paired protocol (3 tasks × 2 checkpoints
-  × 3 subtasks, real branches shared between points).
+**Points.** One point per world model and number of sampling steps:
 
-The **Pareto front** is the set of points no other point beats on both latency and head-view PSNR.
-The **default** is chosen at the knee: the fastest front point whose head-view PSNR is within
-:data:`KNEE_DB` of the best point's — the smallest model that reaches the accuracy — among those that keep
-real time (realtime factor ≥ 1). The shipped default (``small``, 1 step) is compared against it.
+* **v1** (the paper-style latent flow model, :class:`~pilworld.world_model.model.PilWorldModel`): the trained
+  ``tiny`` 32×32 and 64×64 (``weights/bench/tiny_32|tiny_64``) and ``small`` 128×128
+  (:data:`~pilworld.world_model.V1_CHECKPOINT`), each at 1, 2, 4, 8 and 16 Euler steps, run at the rig's
+  128×128 through :class:`~pilworld.world_model.resized.ResizedWorldModel` (resizing in the time and in the
+  frames the judges see), no task adapters. ``base`` (61.6 M parameters) is not trained on this CPU: it is
+  timed with seeded random weights and is never on the front nor the knee (``untrained``).
+* **v2** (the shipped model, :data:`~pilworld.world_model.DEFAULT_CHECKPOINT`, a compositing U-Net over
+  geometry layers with tracked objects): ``v2_shipped``. It is deterministic — one pass, no sampling steps —
+  so it is one point (``steps`` 1, with a note). It runs at the rig's size, bound to the rig's geometry,
+  never resized. **v2 sizes** (:data:`V2_SIZES`: U-Net width 8 or 32, or work size 64² instead of 16 and
+  32²) are points when their weights exist in ``weights/bench/<name>`` (``scripts/train-bench-variants
+  v2_w8 v2_w32 v2_work64`` makes them, same data, cache and 6,000 steps as the shipped model); a missing one
+  is listed as ``{"id": ..., "skipped": "not trained: ..."}`` and left out of front and knee.
 
-Trained models: ``small`` 128×128 is the shipped model (no adapter here, so every point is the stage-1
-model); ``tiny`` at 32×32 and 64×64 are in ``weights/bench`` (same data, 1,500 VAE + 3,500 Ψ_θ steps).
-``base`` (61.6 M parameters) is timed but not trained on this CPU; its point has no accuracy and is
-left out of the front (``untrained``).
+**Per point:**
+
+* ``chunk_latency_ms`` — the median wall time of **one whole imagined round**, ``ImaginedEnv.step(chunk)`` at
+  batch 1 from one simulated start (control video, the model's layers, the prediction of K frames × 3 views,
+  the predicted state), timed round-robin over all points (:func:`pilworld.bench.chunk_latency.time_rounds`,
+  as ``pilworld bench chunk-latency``). The whole round, because v2's cost is in its geometry layers and
+  objects, not its network; the same round for v1 and v2, so they compare. ``predict_latency_ms`` is the
+  model call alone within the same rounds. The chart, the front and ``realtime_factor`` (robot time of one
+  chunk, K·Δ / control rate = 1.5 s, over the round) use the whole round.
+* ``params`` — ``sum(p.numel() for p in model.parameters())``: v1's VAE and denoiser, v2's U-Net and painter.
+* single-step accuracy on held-out clips (seeds 1,000,000+; :mod:`pilworld.bench.world_model`), scored at the
+  rig's resolution: head-view pooled PSNR and SSIM (secondary). v2 is scored through its ``predict_batch``
+  with the clips' joint states, which gives it no history frames (its memory layer is empty): a lower bound.
+* closed loop (:func:`~pilworld.bench.variants.evaluate_variants`, real branches run once and shared by every
+  point): |ΔSR|, HFR, SR_imag, SR_real and their 95 % intervals on 3 tasks × 2 checkpoints ×
+  :data:`CLOSED_LOOP_SUBTASKS` subtasks = 18 pairs, for **every** trained point.
+
+**Quick mode** (``--quick``): v1 at 1, 4 and 16 steps, 24 held-out clips, 1 + 3 timed rounds per point, and the
+closed loop too, small: 1 subtask per task × checkpoint (6 pairs), v1 at 1 step only plus every v2 point (the
+other quick points get latency and single-step figures, no closed loop, and are never on the quick front). With
+6 pairs one pair is 17 points of SR, so the quick knee only separates models that fail every rollout from ones
+that do not. Measured 2026-12-05 on the 2-core machine while another benchmark kept it busy (load ≈ 8): 1,372 s,
+of which 250 s closed loop; on idle cores the old quick mode's parts (172 s for 20 points) suggest ~4 minutes.
+
+**Front and knee.** The front is the set of points with closed-loop figures that no other point beats on
+(latency ↓, |ΔSR| ↓, HFR ↑). The **knee** — the smallest model that reaches the accuracy — is, among the
+real-time points (realtime factor ≥ 1) whose |ΔSR| is within :func:`knee_tolerances` of the best point's
+and whose HFR is within :data:`KNEE_HFR` of the best HFR, the one with the **fewest parameters**, ties by
+latency. ``shipped_default`` compares it with ``v2_shipped`` (``agrees``, else what the default should
+become). ``steps_buy`` gives, per v1 model, what 2…16 steps change against 1 step; ``size_buy`` what each
+size step changes (tiny 32² → tiny 64² → small 128² → base; v2 width 8 → 16 → 32 and work size 32² → 64²;
+and v1 small → v2, another model rather than a size). ``single_step_knee`` is the old rule, for contrast:
+the fastest real-time point of the (latency, head PSNR) front within :data:`KNEE_DB` of the best PSNR.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from pilworld.bench.common import machine_info
 from pilworld.bench.variants import ModelVariant, PairedProtocol, bench_model, evaluate_variants
 
 STEPS = (1, 2, 4, 8, 16)
-QUICK_STEPS = (1, 2, 4, 8, 16)
+QUICK_STEPS = (1, 4, 16)
+QUICK_CLOSED_LOOP_STEPS = (1,)  # quick mode: v1 points in closed loop (every v2 point runs)
 CLOSED_LOOP_SUBTASKS = 3  # per task × checkpoint: 18 pairs per point
-KNEE_DB = 0.25  # head-view PSNR within this of the best counts as "reaches the accuracy"
+QUICK_CLOSED_LOOP_SUBTASKS = 1  # 6 pairs per point
+# The knee's tolerances. SR over N pairs moves in steps of 1/N, so two points one pair apart are not told apart
+# by the protocol (at 18 pairs, the 95 % interval of |ΔSR| is ±10 points or more); 5 points is the project's
+# |ΔSR| target, the tolerance never goes below it. HFR is a per-frame rate, steadier than SR: 0.05 is about its
+# 95 % half-width at 18 pairs (v2 on 300 pairs: ±0.018, ×√(300/18) ≈ 4), and 0.85 → 0.90 is the target's scale.
+KNEE_ABS_DSR_FLOOR = 0.05
+KNEE_HFR = 0.05
+KNEE_DB = 0.25  # the single-step knee (for contrast): head-view PSNR within this of the best
 QUICK_CLIPS = 24
-# Timed calls per point. Quick mode takes the median of 3: the untrained `base` preset costs ~0.5 s per
-# Euler step, so 10 calls at 16 steps alone would eat a third of the 5-minute budget.
+FULL_CLIPS = 96
+# Timed rounds per point (after warm-up rounds). Quick mode takes the median of 3: the untrained `base` preset
+# costs ~0.1 s per Euler step on an idle CPU, so 10 calls at 16 steps would eat a large part of 5 minutes.
 QUICK_REPEATS = 3
 FULL_REPEATS = 10
-FULL_CLIPS = 96
+QUICK_WARMUP = 1
+FULL_WARMUP = 2
+LATENCY_TASK = "sort_cubes"
+LATENCY = (
+    "whole imagined round: ImaginedEnv.step(chunk) at batch 1 (control video, the model's layers, prediction of "
+    "K frames x 3 views, predicted state), median, round-robin over the points; predict_latency_ms is the model "
+    "call alone in the same rounds"
+)
 HEAD = "cam_high"
+SHIPPED = "v2_shipped"
+V2_NO_STEPS = "v2 is deterministic: one pass, no sampling steps (the steps argument is ignored)"
+EPS = 1e-9  # float slack of the tolerance comparisons (1/18 + a difference of pair counts)
+
+# v2 at other sizes, all else as shipped (same data, cache, steps): name → config fields, what changes.
+V2_SIZES: tuple[tuple[str, Mapping[str, int], str], ...] = (
+    ("v2_w8", {"width": 8}, "U-Net width 8 (shipped 16)"),
+    ("v2_w32", {"width": 32}, "U-Net width 32 (shipped 16)"),
+    ("v2_work64", {"work_size": 64}, "U-Net work size 64x64 (shipped 32x32)"),
+)
+# The size steps of size_buy: (from model, to model, what). v1 models compare at 1 step.
+SIZE_STEPS: tuple[tuple[str, str, str], ...] = (
+    ("tiny_32", "tiny_64", "v1 tiny: image 32x32 -> 64x64"),
+    ("tiny_64", "small_128", "v1: tiny 64x64 -> small 128x128 (preset and image)"),
+    ("small_128", "base_128", "v1: small -> base preset (base untrained: latency only)"),
+    ("v2_w8", SHIPPED, "v2: U-Net width 8 -> 16"),
+    (SHIPPED, "v2_w32", "v2: U-Net width 16 -> 32"),
+    (SHIPPED, "v2_work64", "v2: U-Net work size 32x32 -> 64x64"),
+    ("small_128", SHIPPED, "v1 small -> v2 (another model, not a size step)"),
+)
+CLOSED_LOOP_OBJECTIVES: tuple[tuple[str, int], ...] = (("chunk_latency_ms", -1), ("abs_delta_sr", -1), ("hfr", 1))
+SINGLE_STEP_OBJECTIVES: tuple[tuple[str, int], ...] = (("chunk_latency_ms", -1), ("psnr_head", 1))
 
 
 @dataclass(frozen=True)
 class TrainedModel:
-    """A model folder and what it is (preset and native size)."""
+    """A model folder and what it is: family (v1 / v2), preset and native size."""
 
-    preset: str
+    preset: str  # v1: "tiny" | "small" | "base"; v2: "v2"
     size: int
-    path: str  # "" = the packaged checkpoint
-    untrained: bool = False
+    path: str  # the model folder; "" = the family's packaged checkpoint
+    untrained: bool = False  # v1 only: the preset with seeded random weights, timed only
+    family: str = "v1"
+    name: str = ""  # a v2 model's point id ("v2_shipped", "v2_w8"); v1 points are "<preset>_<size>_s<steps>"
+    optional: bool = False  # missing weights make a skipped point instead of an error
+    trained_by: str = ""  # the command that makes the weights
+    expect: tuple[tuple[str, int], ...] = ()  # v2 config fields its folder must have (width, work_size)
+    note: str = ""
+
+    def __post_init__(self) -> None:
+        if self.family not in ("v1", "v2"):
+            raise ValueError(f"model family: expected 'v1' or 'v2', got {self.family!r}")
+        if self.family == "v2" and (self.untrained or not self.name):
+            raise ValueError("a v2 model needs a name (its point id) and trained weights")
 
     @property
     def key(self) -> str:
-        return f"{self.preset}_{self.size}"
+        return self.name or f"{self.preset}_{self.size}"
+
+    @property
+    def folder(self) -> Path:
+        from pilworld.world_model import DEFAULT_CHECKPOINT, V1_CHECKPOINT
+
+        if self.path:
+            return Path(self.path)
+        return Path(V1_CHECKPOINT) if self.family == "v1" else Path(DEFAULT_CHECKPOINT)
+
+    def point_id(self, steps: int) -> str:
+        return self.key if self.family == "v2" else f"{self.key}_s{steps}"
 
 
-def default_models() -> list[TrainedModel]:
+def v2_size_models() -> list[TrainedModel]:
     return [
-        TrainedModel("tiny", 32, bench_model("tiny_32")),
-        TrainedModel("tiny", 64, bench_model("tiny_64")),
-        TrainedModel("small", 128, ""),
-        TrainedModel("base", 128, "", untrained=True),
+        TrainedModel(
+            "v2",
+            128,
+            bench_model(name),
+            family="v2",
+            name=name,
+            optional=True,
+            trained_by=f"scripts/train-bench-variants {name}",
+            expect=tuple(sorted(fields.items())),
+            note=what,
+        )
+        for name, fields, what in V2_SIZES
     ]
 
 
-def _check_model(m: TrainedModel, path: Path) -> None:
-    """Raise ``FileNotFoundError`` naming the preset and size when ``path`` holds no model."""
-    if not (path / "config.json").is_file():
-        raise FileNotFoundError(
-            f"speed-accuracy: no {m.preset} {m.size}x{m.size} model at {path}; docs/RESULTS.md has the "
-            "command that trains it"
-        )
+def default_models() -> list[TrainedModel]:
+    from pilworld.world_model import DEFAULT_CHECKPOINT, V1_CHECKPOINT
+
+    return [
+        TrainedModel("tiny", 32, bench_model("tiny_32")),
+        TrainedModel("tiny", 64, bench_model("tiny_64")),
+        TrainedModel("small", 128, str(V1_CHECKPOINT)),
+        TrainedModel("base", 128, "", untrained=True),
+        TrainedModel("v2", 128, str(DEFAULT_CHECKPOINT), family="v2", name=SHIPPED, note="the shipped model"),
+        *v2_size_models(),
+    ]
 
 
-def _load(m: TrainedModel, rig_size: tuple[int, int]) -> Any:
+def _missing(m: TrainedModel) -> str | None:
+    """Why ``m`` cannot be loaded (no model folder), or ``None``."""
+    if m.untrained or (m.folder / "config.json").is_file():
+        return None
+    return f"not trained: {m.trained_by}" if m.trained_by else f"no model at {m.folder}"
+
+
+def _check_model(m: TrainedModel) -> None:
+    """Raise ``FileNotFoundError`` naming the model when its folder holds none."""
+    if _missing(m) is not None:
+        how = m.trained_by or "docs/RESULTS.md has the command that trains it"
+        raise FileNotFoundError(f"speed-accuracy: no {m.preset} {m.size}x{m.size} model at {m.folder}; {how}")
+
+
+def _load(m: TrainedModel, rig: Any) -> Any:
+    """``m`` ready for the rig (a :class:`~pilworld.config.rig.RigConfig`): v1 resized to its image size, v2 bound
+    to its geometry (never resized: v2 composites at the rig's size)."""
     import torch
 
-    from pilworld.world_model import V1_CHECKPOINT
     from pilworld.world_model.checkpoint import load_world_model
     from pilworld.world_model.config import preset
     from pilworld.world_model.model import PilWorldModel
     from pilworld.world_model.resized import ResizedWorldModel
 
+    size = (rig.image_size.width, rig.image_size.height)
     if m.untrained:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(0)
             model: Any = PilWorldModel(preset(m.preset, height=m.size, width=m.size)).eval()
     else:
-        path = Path(m.path) if m.path else Path(V1_CHECKPOINT)  # the sweep's presets and steps are v1's
-        _check_model(m, path)
-        model = load_world_model(path)
-    if (model.info.width, model.info.height) != rig_size:
-        model = ResizedWorldModel(model, height=rig_size[1], width=rig_size[0])
+        _check_model(m)
+        model = load_world_model(m.folder)
+    if m.family == "v2":
+        from pilworld.world_model.composite.model import CompositeWorldModel
+
+        if not isinstance(model, CompositeWorldModel):
+            raise ValueError(f"speed-accuracy: {m.key} at {m.folder} is not a v2 (composite) world model")
+        wrong = {k: getattr(model.config, k) for k, v in m.expect if getattr(model.config, k) != v}
+        if wrong:
+            raise ValueError(f"speed-accuracy: {m.key} at {m.folder} has {wrong}, expected {dict(m.expect)}")
+        model.bind_rig(rig)  # ValueError when the rig's image size is not the model's
+        return model
+    if not isinstance(model, PilWorldModel):
+        raise ValueError(f"speed-accuracy: {m.key} at {m.folder} is not a v1 world model")
+    if (model.info.width, model.info.height) != size:
+        model = ResizedWorldModel(model, height=size[1], width=size[0])
     return model
 
 
-def pareto_front(points: Sequence[dict[str, Any]], *, x: str = "chunk_latency_ms", y: str = "psnr_head") -> list[str]:
-    """Ids of the points not dominated: none other is at most as slow and at least as accurate, one strictly."""
-    scored = [p for p in points if p.get(y) is not None]
-    front = []
-    for p in scored:
-        dominated = any(q is not p and q[x] <= p[x] and q[y] >= p[y] and (q[x] < p[x] or q[y] > p[y]) for q in scored)
-        if not dominated:
-            front.append(p["id"])
-    return sorted(front, key=lambda i: next(p[x] for p in scored if p["id"] == i))
+def parameter_count(model: Any) -> int:
+    """Parameters of the network itself (a resized model's inner one): v1's VAE + denoiser, v2's U-Net + painter."""
+    inner = getattr(model, "model", model)
+    return int(sum(p.numel() for p in inner.parameters()))
 
 
-def choose_default(points: Sequence[dict[str, Any]], front: Sequence[str]) -> dict[str, Any]:
-    """The knee: the fastest real-time front point within KNEE_DB of the best head-view PSNR."""
-    on_front = [p for p in points if p["id"] in front]
+class _Timed:
+    """``model`` with its prediction calls timed (what the imagined branch calls: ``predict_with_state`` when the
+    model has it, else ``predict``); everything else passes through."""
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+        self.seconds: list[float] = []
+
+    @property
+    def info(self) -> Any:
+        return self.model.info
+
+    def __getattr__(self, name: str) -> Any:
+        attr = getattr(self.__dict__["model"], name)
+        if name not in ("predict", "predict_with_state"):
+            return attr
+
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t = time.perf_counter()
+            try:
+                return attr(*args, **kwargs)
+            finally:
+                self.seconds.append(time.perf_counter() - t)
+
+        return timed
+
+
+# ---------------------------------------------------------------------- front, knee, what each step buys
+
+
+def _scored(p: Mapping[str, Any], keys: Sequence[str]) -> bool:
+    return not p.get("untrained") and not p.get("skipped") and all(p.get(k) is not None for k in keys)
+
+
+def pareto_front(
+    points: Sequence[Mapping[str, Any]], objectives: Sequence[tuple[str, int]] = CLOSED_LOOP_OBJECTIVES
+) -> list[str]:
+    """Ids of the points not dominated on ``objectives`` ((key, +1 higher is better / −1 lower is better)): no
+    other point is at least as good on every one and better on one. Untrained, skipped and unmeasured points
+    take no part. Sorted by latency."""
+    keys = [k for k, _ in objectives]
+    scored = [p for p in points if _scored(p, keys)]
+
+    def beats(q: Mapping[str, Any], p: Mapping[str, Any]) -> bool:
+        no_worse = all(s * q[k] >= s * p[k] for k, s in objectives)
+        return no_worse and any(s * q[k] > s * p[k] for k, s in objectives)
+
+    front = [p for p in scored if not any(q is not p and beats(q, p) for q in scored)]
+    return [p["id"] for p in sorted(front, key=lambda p: (p["chunk_latency_ms"], p["id"]))]
+
+
+def knee_tolerances(pairs: int) -> dict[str, float]:
+    """How far from the best a point may be and still "reach the accuracy" on a protocol of ``pairs`` pairs."""
+    if pairs < 1:
+        raise ValueError(f"pairs: expected at least 1, got {pairs}")
+    return {"abs_delta_sr": round(max(KNEE_ABS_DSR_FLOOR, 1.0 / pairs), 4), "hfr": KNEE_HFR}
+
+
+def choose_knee(points: Sequence[Mapping[str, Any]], front: Sequence[str], *, pairs: int) -> dict[str, Any]:
+    """The smallest model that reaches the closed-loop accuracy (see the module docstring)."""
+    scored = [p for p in points if _scored(p, ("chunk_latency_ms", "abs_delta_sr", "hfr"))]
+    if not scored:
+        raise ValueError(
+            "speed-accuracy: no point has a closed-loop accuracy (|ΔSR| and HFR of a trained model); "
+            "nothing to choose the knee from"
+        )
+    tol = knee_tolerances(pairs)
+    best = min(scored, key=lambda p: (p["abs_delta_sr"], -p["hfr"], p["chunk_latency_ms"], p["id"]))
+    best_hfr = max(p["hfr"] for p in scored)
+    near_dsr = [p for p in scored if p["abs_delta_sr"] <= best["abs_delta_sr"] + tol["abs_delta_sr"] + EPS]
+    reach = [p for p in near_dsr if p["hfr"] >= best_hfr - tol["hfr"] - EPS]
+    rule = (
+        f"fewest parameters (ties: fastest) among the real-time points whose closed-loop |ΔSR| is within "
+        f"{tol['abs_delta_sr']:.3f} of the best ({100 * best['abs_delta_sr']:.1f} points, {best['id']}) and whose "
+        f"HFR is within {tol['hfr']:.2f} of the best ({best_hfr:.3f})"
+    )
+    if not reach:  # the best |ΔSR| and the best HFR are far apart: |ΔSR|, the headline figure, decides
+        reach = near_dsr
+        rule += "; no point reaches both, so the |ΔSR| tolerance alone"
+    realtime = [p for p in reach if p["realtime_factor"] >= 1.0]
+    if realtime:
+        pick = min(realtime, key=lambda p: (p["params"], p["chunk_latency_ms"], p["id"]))
+    else:
+        pick = min(reach, key=lambda p: (p["chunk_latency_ms"], p["id"]))
+        rule += "; none of them keeps real time, so the fastest of them"
+    return {
+        "id": pick["id"],
+        "family": pick.get("family"),
+        "preset": pick["preset"],
+        "size": pick["size"],
+        "steps": pick["steps"],
+        "params": pick["params"],
+        "chunk_latency_ms": pick["chunk_latency_ms"],
+        "realtime_factor": pick["realtime_factor"],
+        "abs_delta_sr": pick["abs_delta_sr"],
+        "hfr": pick["hfr"],
+        "sr_imag": pick.get("sr_imag"),
+        "psnr_head": pick.get("psnr_head"),
+        "on_front": pick["id"] in front,
+        "best_id": best["id"],
+        "best_abs_delta_sr": best["abs_delta_sr"],
+        "best_hfr": best_hfr,
+        "tolerances": tol,
+        "pairs": pairs,
+        "reaching": sorted(p["id"] for p in reach),
+        "rule": rule,
+    }
+
+
+def choose_single_step_default(points: Sequence[Mapping[str, Any]], front: Sequence[str]) -> dict[str, Any]:
+    """The old knee, on single-step accuracy: the fastest real-time point of the (latency, head PSNR) front
+    within :data:`KNEE_DB` of the best head-view PSNR (the fastest front point when none keeps real time)."""
+    on_front = [p for p in points if p["id"] in front and _scored(p, ("psnr_head",))]
     if not on_front:
-        raise ValueError("speed-accuracy: no point has an accuracy (nothing to choose from)")
+        raise ValueError("speed-accuracy: no point has a single-step accuracy (nothing to choose from)")
     best = max(p["psnr_head"] for p in on_front)
     good = [p for p in on_front if p["psnr_head"] >= best - KNEE_DB and p["realtime_factor"] >= 1.0]
     pick = min(good or on_front, key=lambda p: p["chunk_latency_ms"])
@@ -127,8 +368,86 @@ def choose_default(points: Sequence[dict[str, Any]], front: Sequence[str]) -> di
         "chunk_latency_ms": pick["chunk_latency_ms"],
         "psnr_head": pick["psnr_head"],
         "best_psnr_head": best,
-        "rule": f"fastest real-time point of the front within {KNEE_DB} dB of the best head-view PSNR",
+        "front_ids": list(front),
+        "rule": f"fastest real-time point of the (latency, head PSNR) front within {KNEE_DB} dB of the best",
     }
+
+
+def _delta(a: Mapping[str, Any], b: Mapping[str, Any], key: str) -> float | None:
+    x, y = a.get(key), b.get(key)
+    return None if x is None or y is None else round(float(y) - float(x), 4)
+
+
+def _change(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
+    """What going from point ``a`` to point ``b`` changes (b − a; latency also as a ratio)."""
+    ratio = b["chunk_latency_ms"] / a["chunk_latency_ms"] if a["chunk_latency_ms"] else None
+    return {
+        "d_params": b["params"] - a["params"],
+        "d_latency_ms": _delta(a, b, "chunk_latency_ms"),
+        "latency_ratio": None if ratio is None else round(ratio, 3),
+        "d_abs_delta_sr": _delta(a, b, "abs_delta_sr"),
+        "d_hfr": _delta(a, b, "hfr"),
+        "d_sr_imag": _delta(a, b, "sr_imag"),
+        "d_psnr_head": _delta(a, b, "psnr_head"),
+    }
+
+
+def steps_buy(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Per v1 model, what each step count above its fewest changes against the fewest (usually 1 step)."""
+    by_model: dict[str, list[Mapping[str, Any]]] = {}
+    for p in points:
+        if p.get("family") == "v1" and not p.get("skipped"):
+            by_model.setdefault(p["model"], []).append(p)
+    out = []
+    for model, pts in by_model.items():
+        pts = sorted(pts, key=lambda p: p["steps"])
+        for p in pts[1:]:
+            out.append({"model": model, "from": pts[0]["id"], "to": p["id"], "steps": [pts[0]["steps"], p["steps"]]})
+            out[-1].update(_change(pts[0], p))
+    return out
+
+
+def size_buy(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """What each size step of :data:`SIZE_STEPS` changes (v1 models at their fewest steps); a step to or from a
+    skipped model says so; one whose models are not in the sweep is left out."""
+    first: dict[str, Mapping[str, Any]] = {}
+    for p in sorted(points, key=lambda p: p.get("steps") or 0):
+        first.setdefault(p["model"], p)
+    out: list[dict[str, Any]] = []
+    for a, b, what in SIZE_STEPS:
+        if a not in first or b not in first:
+            continue
+        pa, pb = first[a], first[b]
+        row: dict[str, Any] = {"from": pa["id"], "to": pb["id"], "what": what}
+        skipped = [p["skipped"] for p in (pa, pb) if p.get("skipped")]
+        if skipped:
+            row["skipped"] = "; ".join(f"{p['id']} {p['skipped']}" for p in (pa, pb) if p.get("skipped"))
+        else:
+            row.update(_change(pa, pb))
+        out.append(row)
+    return out
+
+
+def shipped_verdict(points: Sequence[Mapping[str, Any]], knee: Mapping[str, Any]) -> dict[str, Any]:
+    """The shipped default (``v2_shipped``) against the knee: does it sit there, else what it should become."""
+    shipped = next((p for p in points if p["id"] == SHIPPED and not p.get("skipped")), None)
+    out: dict[str, Any] = {"id": SHIPPED, "agrees": knee["id"] == SHIPPED}
+    if shipped is not None:
+        keys = ("family", "params", "chunk_latency_ms", "realtime_factor", "abs_delta_sr", "hfr", "sr_imag")
+        out |= {k: shipped.get(k) for k in keys} | {"psnr_head": shipped.get("psnr_head")}
+    if out["agrees"]:
+        out["verdict"] = "the shipped default (v2) is the knee: the smallest model that reaches the accuracy"
+    elif shipped is None:
+        out["verdict"] = f"v2_shipped is not in this sweep; the knee is {knee['id']}"
+    else:
+        out["verdict"] = (
+            f"the knee is {knee['id']} ({knee['preset']} {knee['size']}, {knee['steps']} step(s), "
+            f"{knee['params']:,} parameters), not the shipped v2: the default should become {knee['id']}"
+        )
+    return out
+
+
+# ---------------------------------------------------------------------- the sweep
 
 
 def run_speed_accuracy(
@@ -141,77 +460,155 @@ def run_speed_accuracy(
     repeats: int | None = None,
     out: str | Path = "bench_runs/speed-accuracy",
     closed_loop: bool | None = None,
+    subtasks: int | None = None,
     workers: int | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
+    """The sweep (see the module docstring). ``closed_loop=False`` skips the closed loop (then there is no knee:
+    ``default`` says why); ``subtasks`` overrides the closed loop's subtasks per task × checkpoint."""
     from hw_drivers.sim.tasks import TASK_NAMES
+    from pilworld.bench.chunk_latency import imagined_env, round_setup, time_rounds
     from pilworld.bench.world_model import HELDOUT_SEED0, heldout_dataset, run_world_model_bench
     from pilworld.config.rig import RigConfig
 
     t0 = time.monotonic()
     rig_cfg = RigConfig.load(rig)
-    rig_size = (rig_cfg.image_size.width, rig_cfg.image_size.height)
-    chosen_models = list(models or default_models())
+    chosen_models = list(models if models is not None else default_models())
     chosen_steps = tuple(steps or (QUICK_STEPS if quick else STEPS))
     n_clips = clips or (QUICK_CLIPS if quick else FULL_CLIPS)
-    # `is None`, not `or`: an explicit 0 must reach the bench's own check and be refused, not become the default.
     n_repeats = repeats if repeats is not None else (QUICK_REPEATS if quick else FULL_REPEATS)
-    loop = (not quick) if closed_loop is None else closed_loop
+    if n_repeats < 1:
+        raise ValueError(f"repeats: expected at least 1 timed round per point, got {n_repeats}")
+    warmup = QUICK_WARMUP if quick else FULL_WARMUP
+    loop = True if closed_loop is None else closed_loop
+    n_sub = subtasks or (QUICK_CLOSED_LOOP_SUBTASKS if quick else CLOSED_LOOP_SUBTASKS)
+    loop_steps = QUICK_CLOSED_LOOP_STEPS if quick else None
+    if len({m.key for m in chosen_models}) != len(chosen_models):
+        raise ValueError(f"models: a model is listed twice: {[m.key for m in chosen_models]}")
+    present: list[TrainedModel] = []
+    skipped: dict[str, str] = {}
     for m in chosen_models:  # a missing model fails before minutes of data collection and earlier points
-        if not m.untrained and m.path:
-            _check_model(m, Path(m.path))
-    # The held-out set of `pilworld bench world-model` (same arguments, so its cache is shared).
-    heldout = heldout_dataset(rig, tasks=list(TASK_NAMES), episodes=2, seed0=HELDOUT_SEED0, progress=progress)
+        reason = _missing(m)
+        if reason is not None and m.optional:
+            skipped[m.key] = reason
+        elif reason is not None:
+            _check_model(m)
+        else:
+            present.append(m)
+
     points: list[dict[str, Any]] = []
+    loaded: dict[str, Any] = {}
     for m in chosen_models:
-        model = _load(m, rig_size)
-        for s in chosen_steps:
-            if progress:
-                print(f"[speed-accuracy] {m.key} steps={s}", flush=True)
-            r = run_world_model_bench(
-                model,
-                heldout=heldout,
-                steps=s,
-                clips=1 if m.untrained else n_clips,
-                repeats=n_repeats,
-                rig=rig,
-                progress=False,
-            )
-            head = r["per_view"][HEAD]
+        for s in (1,) if m.family == "v2" else chosen_steps:
             point: dict[str, Any] = {
-                "id": f"{m.key}_s{s}",
+                "id": m.point_id(s),
+                "model": m.key,
+                "family": m.family,
                 "preset": m.preset,
                 "size": f"{m.size}x{m.size}",
                 "steps": s,
-                "chunk_latency_ms": r["chunk_latency_ms"],
-                "realtime_factor": r["realtime_factor"],
-                "psnr_head": None if m.untrained else head["psnr_pooled"],
-                "ssim_head": None if m.untrained else head["ssim"],
-                "psnr_pooled": None if m.untrained else r["psnr_pooled"],
-                "gain_over_frozen_head_db": None if m.untrained else r["gain_over_frozen_pooled_db"][HEAD],
-                "abs_delta_sr": None,
-                "hfr": None,
-                "clips": r["clips"],
             }
+            if m.family == "v2":
+                point["note"] = f"{m.note + '; ' if m.note else ''}{V2_NO_STEPS}"
+            if m.key in skipped:
+                points.append(point | {"skipped": skipped[m.key], "params": None})
+                continue
+            if m.key not in loaded:
+                loaded[m.key] = _load(m, rig_cfg)
+            point |= {"path": None if m.untrained else str(m.folder), "params": parameter_count(loaded[m.key])}
             if m.untrained:
-                point["untrained"] = "not trained on this CPU (timed with random weights)"
+                point["untrained"] = "not trained on this CPU (timed with seeded random weights)"
             points.append(point)
-    reason = "quick mode: closed loop not run" if quick and closed_loop is None else "closed_loop=False"
-    closed: dict[str, Any] = {"skipped": reason} if not loop else {}
+    live = [p for p in points if not p.get("skipped")]
+    by_model = {m.key: m for m in chosen_models}
+
+    # 1. Latency: one whole imagined round per point, round-robin (a slowing machine slows every point alike).
+    if progress:
+        print(f"[speed-accuracy] timing {len(live)} points: {warmup} + {n_repeats} rounds each", flush=True)
+    setup = round_setup(rig, LATENCY_TASK)
+    timed = {p["id"]: _Timed(loaded[p["model"]]) for p in live}
+    envs = {
+        p["id"]: imagined_env(timed[p["id"]], setup, steps=None if p["family"] == "v2" else p["steps"]) for p in live
+    }
+    rounds = time_rounds(envs, setup, repeats=n_repeats, warmup=warmup)
+    chunk_robot_s = setup.spec.frames * setup.spec.stride / rig_cfg.control_rate_hz
+    for p in live:
+        ms = float(np.median(rounds[p["id"]]))
+        predict = timed[p["id"]].seconds[-n_repeats:]
+        p["chunk_latency_ms"] = round(ms, 2)
+        p["chunk_latency_ms_p90"] = round(float(np.percentile(rounds[p["id"]], 90)), 2)
+        p["predict_latency_ms"] = round(1000.0 * float(np.median(predict)), 2)
+        p["realtime_factor"] = round(chunk_robot_s * 1000.0 / ms, 3)
+
+    # 2. Single-step accuracy on held-out clips (the held-out set of `pilworld bench world-model`, its cache shared).
+    heldout = None
+    if any(not p.get("untrained") for p in live):
+        heldout = heldout_dataset(rig, tasks=list(TASK_NAMES), episodes=2, seed0=HELDOUT_SEED0, progress=progress)
+    for p in live:
+        p |= {k: None for k in ("psnr_head", "ssim_head", "psnr_pooled", "gain_over_frozen_head_db")}
+        p |= {"clips": 0, "abs_delta_sr": None, "hfr": None, "sr_imag": None, "sr_real": None}
+        if p.get("untrained"):
+            continue
+        if progress:
+            print(f"[speed-accuracy] single-step {p['id']}", flush=True)
+        assert heldout is not None
+        r = run_world_model_bench(
+            loaded[p["model"]],
+            heldout=heldout,
+            steps=None if p["family"] == "v2" else p["steps"],
+            clips=n_clips,
+            repeats=1,  # latency is timed above, as whole rounds
+            rig=rig,
+            progress=False,
+        )
+        head = r["per_view"][HEAD]
+        p |= {
+            "psnr_head": head["psnr_pooled"],
+            "ssim_head": head["ssim"],
+            "psnr_pooled": r["psnr_pooled"],
+            "gain_over_frozen_head_db": r["gain_over_frozen_pooled_db"][HEAD],
+            "clips": r["clips"],
+        }
+        if p["family"] == "v2":
+            p["single_step_note"] = "predict_batch with the clips' joint states and no history frames (memory empty)"
+
+    # 3. Closed loop: every trained point (quick: v1 at 1 step and every v2 point), real branches shared.
     if loop:
-        closed = _closed_loop(points, chosen_models, out, rig=rig, workers=workers, progress=progress)
+        closed = _closed_loop(
+            points, by_model, out, rig=rig, subtasks=n_sub, steps=loop_steps, workers=workers, progress=progress
+        )
+    else:
+        closed = {"skipped": "closed_loop=False"}
+
     front = pareto_front(points)
-    default = choose_default(points, front)
-    shipped = next((p for p in points if p["preset"] == "small" and p["steps"] == 1), None)
+    default: dict[str, Any]
+    if loop:
+        default = choose_knee(points, front, pairs=closed["pairs_per_point"])
+    else:
+        default = {"id": None, "none": "closed loop not run: the knee is chosen on closed-loop accuracy"}
+    single_front = pareto_front(points, SINGLE_STEP_OBJECTIVES)
+    try:
+        single_step: dict[str, Any] = choose_single_step_default(points, single_front)
+    except ValueError as err:
+        single_step = {"id": None, "none": str(err), "front_ids": single_front}
     return {
         "bench": "speed-accuracy",
         "quick": quick,
+        "latency": {
+            "measures": LATENCY,
+            "task": LATENCY_TASK,
+            "repeats": n_repeats,
+            "warmup": warmup,
+            "chunk_robot_s": chunk_robot_s,
+        },
         "points": points,
         "front": [p for p in points if p["id"] in front],
         "front_ids": front,
         "default": default,
-        "shipped_default": {"preset": "small", "steps": 1, "agrees": default["id"] == "small_128_s1"}
-        | ({"chunk_latency_ms": shipped["chunk_latency_ms"], "psnr_head": shipped["psnr_head"]} if shipped else {}),
+        "shipped_default": shipped_verdict(points, default) if loop else {"id": SHIPPED, "agrees": None},
+        "single_step_knee": single_step,
+        "steps_buy": steps_buy(points),
+        "size_buy": size_buy(points),
         "closed_loop": closed,
         "heldout_clips": n_clips,
         "latency_repeats": n_repeats,
@@ -222,32 +619,61 @@ def run_speed_accuracy(
 
 def _closed_loop(
     points: list[dict[str, Any]],
-    models: Sequence[TrainedModel],
+    models: Mapping[str, TrainedModel],
     out: str | Path,
     *,
     rig: str | Path,
+    subtasks: int = CLOSED_LOOP_SUBTASKS,
+    steps: Sequence[int] | None = None,
     workers: int | None,
     progress: bool,
 ) -> dict[str, Any]:
-    """|ΔSR| and HFR of every trained point on one small protocol (real branches run once)."""
+    """|ΔSR|, HFR, SR_imag (and their intervals) of every trained point on one protocol, real branches run once.
+
+    ``steps``: the v1 step counts that run (``None``: all); every v2 point runs. The others get a note.
+    """
     from pilworld.bench.paired import QUICK_CHECKPOINTS, protocol
 
     base = protocol(True)
-    proto = PairedProtocol(base.tasks, QUICK_CHECKPOINTS, CLOSED_LOOP_SUBTASKS, base.rounds, base.seed)
-    by_key = {m.key: m for m in models}
+    proto = PairedProtocol(base.tasks, QUICK_CHECKPOINTS, subtasks, base.rounds, base.seed)
     variants = []
     for p in points:
-        m = by_key[f"{p['preset']}_{p['size'].split('x')[0]}"]
-        if m.untrained:
+        if p.get("untrained") or p.get("skipped"):
+            continue
+        m = models[p["model"]]
+        if m.family == "v1" and steps is not None and p["steps"] not in steps:
+            p["closed_loop"] = f"not run (quick mode: v1 at {', '.join(map(str, steps))} step(s) only)"
             continue
         variants.append(
-            ModelVariant(p["id"], p["id"], m.path, adapter="none", steps=p["steps"], resize=True, role="point")
+            ModelVariant(
+                p["id"],
+                p["id"],
+                str(m.folder),  # explicit: "" would be the packaged v2
+                adapter="none",
+                steps=p["steps"] if m.family == "v1" else None,
+                resize=m.family == "v1",
+                role="point",
+                trained_by=m.trained_by,
+            )
         )
+    if not variants:
+        raise ValueError("speed-accuracy: no trained point to run in closed loop")
     results = evaluate_variants(variants, proto, out, rig=rig, workers=workers, progress=progress, single_step=False)
     for p in points:
-        if p["id"] in results:
-            o = results[p["id"]]["metrics"]["overall"]
-            p["abs_delta_sr"] = o["abs_delta_sr"]
-            p["hfr"] = o["hfr"]
-            p["sr_imag"] = o["sr_imag"]
-    return {"pairs_per_point": proto.pairs, "checkpoints": list(proto.checkpoints), "out": str(out)}
+        if p["id"] not in results:
+            continue
+        o = results[p["id"]]["metrics"]["overall"]
+        ci = o.get("ci95") or {}
+        p |= {k: o.get(k) for k in ("abs_delta_sr", "hfr", "sr_imag", "sr_real")}
+        p["ci95"] = {k: ci[k] for k in ("abs_delta_sr", "hfr", "sr_imag") if k in ci}
+        p["pairs"] = o.get("n_subtasks", proto.pairs)
+    return {
+        "pairs_per_point": proto.pairs,
+        "tasks": list(proto.tasks),
+        "checkpoints": list(proto.checkpoints),
+        "subtasks": proto.subtasks,
+        "rounds": proto.rounds,
+        "v1_steps": "all" if steps is None else list(steps),
+        "points": [v.name for v in variants],
+        "out": str(out),
+    }

@@ -36,13 +36,16 @@ PAIRED_COLUMNS = (
     Column("head PSNR", 9, lambda row: row["head"].get("psnr_pooled"), num, align="<", sep="  "),
 )
 SPEED_ACCURACY_COLUMNS = (
-    Column("point", 16, "id", align="<"),
-    Column("latency ms", 11, "chunk_latency_ms", lambda x: num(x, 1)),
+    Column("point", 14, "id", align="<"),
+    Column("params", 8, "params", lambda x: "—" if x is None else f"{x / 1e6:.2f}M"),
+    Column("round ms", 10, "chunk_latency_ms", lambda x: num(x, 1)),
     Column("x realtime", 11, "realtime_factor", lambda x: num(x, 1)),
-    Column("head PSNR", 10, "psnr_head", num),
-    Column("SSIM", 7, "ssim_head", num),
     Column("|ΔSR|", 7, "abs_delta_sr", pct),
+    Column("HFR", 7, "hfr", lambda x: num(x, 3)),
+    Column("SR_imag", 8, "sr_imag", pct),
+    Column("head PSNR", 10, "psnr_head", num),
     Column("front", 5, "front", align="<", sep="  "),
+    Column("", 0, "remark", align="<", sep=" "),
 )
 WORLD_MODEL_COLUMNS = (
     Column("view", 18, "view", align="<"),
@@ -173,7 +176,11 @@ def register(sub: Any) -> None:
     pt = benches.add_parser(
         "paired", help="the paper's table: SR_real, SR_imag, |ΔSR|, HFR, Pearson/MMRV for ours, the baseline, ablations"
     )
-    pt.add_argument("--quick", action="store_true", help="3 tasks × 2 checkpoints × 3 subtasks, ours + baseline")
+    pt.add_argument(
+        "--quick",
+        action="store_true",
+        help="3 tasks × 2 checkpoints × 3 subtasks, shipped v2, paper-faithful, Ctrl-World-style",
+    )
     pt.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     pt.add_argument(
         "--out", type=Path, default=None, help="run folders (default bench_runs/paired-quick|full); resumed"
@@ -183,7 +190,7 @@ def register(sub: Any) -> None:
         default="",
         help="comma-separated variants (default: by mode; see docs/RESULTS.md); NAME=PATH adds a model folder",
     )
-    pt.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 3 / 20)")
+    pt.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 3 quick / 10)")
     pt.add_argument("--seed", type=int, default=None, help="first layout seed (default 6000000)")
     pt.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
     pt.add_argument(
@@ -194,25 +201,48 @@ def register(sub: Any) -> None:
     pt.set_defaults(handler=_paired)
 
     sa = benches.add_parser(
-        "speed-accuracy", help="presets × resolution × sampling steps: chunk latency vs single-step error and |ΔSR|"
+        "speed-accuracy",
+        help="v1 presets × resolution × sampling steps, and v2: one round's latency vs closed-loop |ΔSR| and HFR",
     )
-    sa.add_argument("--quick", action="store_true", help="single-step and latency only, 24 held-out clips")
+    sa.add_argument(
+        "--quick",
+        action="store_true",
+        help="steps 1,4,16, 24 held-out clips, 3 timed rounds; closed loop on 6 pairs, v1 at 1 step and v2 only",
+    )
     sa.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
-    sa.add_argument("--steps", default="", help="comma-separated sampling steps (default 1,2,4,8,16)")
+    sa.add_argument("--steps", default="", help="comma-separated v1 sampling steps (default 1,2,4,8,16; quick 1,4,16)")
     sa.add_argument("--clips", type=int, default=None, help="held-out clips per point (default 24 quick / 96)")
     sa.add_argument(
-        "--repeats", type=int, default=None, help="timed calls per point; the median is reported (default 10, quick 3)"
+        "--repeats",
+        type=int,
+        default=None,
+        help="timed imagined rounds per point; the median is reported (default 10, quick 3)",
     )
-    sa.add_argument("--out", type=Path, default=Path("bench_runs") / "speed-accuracy", help="closed-loop run folders")
+    sa.add_argument(
+        "--subtasks", type=int, default=None, help="closed loop: subtasks per task × checkpoint (default 3, quick 1)"
+    )
+    sa.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="closed-loop run folders (default bench_runs/speed-accuracy-full, or -quick)",
+    )
     sa.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
     sa.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/speed_accuracy.png)")
     sa.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     sa.set_defaults(handler=_speed_accuracy)
 
     st = benches.add_parser(
-        "stability", help="horizon sweep, failure faithfulness, counterfactuals, calibration error, OOD actions"
+        "stability",
+        help="per model: horizon sweep, failure faithfulness, counterfactuals, calibration/mount/robot-model errors, "
+        "OOD actions, action shuffle",
     )
     st.add_argument("--quick", action="store_true", help="1 subtask per task × checkpoint, 1 probe start each")
+    st.add_argument(
+        "--models",
+        default="",
+        help="bench variants side by side, comma-separated (default: pilworld,v2_paper_gamma)",
+    )
     st.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     st.add_argument("--subtasks", type=int, default=None, help="20-round pairs per task × checkpoint (default 1 / 5)")
     st.add_argument("--starts", type=int, default=None, help="probe starts per task × checkpoint (default 1 / 4)")
@@ -714,28 +744,52 @@ def _speed_accuracy(args: argparse.Namespace) -> int:
         raise ValueError(f"--steps: expected comma-separated integers such as 1,2,4, got {args.steps!r}") from None
     if steps and min(steps) < 1:
         raise ValueError(f"--steps: expected integers >= 1, got {args.steps!r}")
-    if args.clips is not None and args.clips < 1:
-        raise ValueError(f"--clips: expected at least 1, got {args.clips}")
+    for name in ("clips", "repeats", "subtasks"):
+        if getattr(args, name) is not None and getattr(args, name) < 1:
+            raise ValueError(f"--{name}: expected at least 1, got {getattr(args, name)}")
+    out = args.out or Path("bench_runs") / ("speed-accuracy-quick" if args.quick else "speed-accuracy-full")
     r = run_speed_accuracy(
         rig=args.rig,
         quick=args.quick,
         steps=steps,
         clips=args.clips,
         repeats=args.repeats,
-        out=args.out,
+        subtasks=args.subtasks,
+        out=out,
         workers=args.workers,
         progress=not args.json,
     )
-    chart = speed_accuracy_chart(r["points"], r["front_ids"], args.chart or args.out / "speed_accuracy.png")
+    d, shipped = r["default"], r["shipped_default"]
+    chart = speed_accuracy_chart(
+        r["points"], r["front_ids"], args.chart or out / "speed_accuracy.png", knee=d.get("id"), shipped=shipped["id"]
+    )
     r["chart"] = str(chart)
-    print(f"speed-accuracy ({'quick' if r['quick'] else 'full'}): {len(r['points'])} points, chart {chart}")
-    rows = [{**p, "front": "*" if p["id"] in r["front_ids"] else ""} for p in r["points"]]
+    loop = r["closed_loop"]
+    pairs = f"{loop['pairs_per_point']} closed-loop pairs per point" if "pairs_per_point" in loop else loop["skipped"]
+    print(f"speed-accuracy ({'quick' if r['quick'] else 'full'}): {len(r['points'])} points, {pairs}, chart {chart}")
+    print(f"  latency: {r['latency']['measures']}")
+    rows = [
+        {
+            **p,
+            "front": "*" if p["id"] in r["front_ids"] else "",
+            "remark": p.get("skipped") or p.get("untrained") or p.get("closed_loop") or "",
+        }
+        for p in r["points"]
+    ]
     for line in table(SPEED_ACCURACY_COLUMNS, rows):
         print(line)
-    d = r["default"]
-    print(
-        f"  default (knee): {d['preset']} {d['size']}, {d['steps']} steps, {d['chunk_latency_ms']:.1f} ms — {d['rule']}"
-    )
+    if d.get("id") is None:
+        print(f"  knee: none ({d['none']})")
+    else:
+        print(
+            f"  knee: {d['id']} ({d['family']}{'' if d['preset'] == d['family'] else ' ' + d['preset']} "
+            f"{d['size']}, {d['params']:,} parameters), "
+            f"{d['chunk_latency_ms']:.1f} ms per round, |ΔSR| {pct(d['abs_delta_sr'])}, HFR {num(d['hfr'], 3)} "
+            f"— {d['rule']}"
+        )
+        print(f"  shipped default ({shipped['id']}): {shipped['verdict']}")
+    single = r["single_step_knee"]
+    print(f"  single-step knee (head PSNR, for contrast): {single.get('id') or single.get('none')}")
     return emit(args, r)
 
 
@@ -747,6 +801,7 @@ def _stability(args: argparse.Namespace) -> int:
         if getattr(args, name) is not None and getattr(args, name) < 1:
             raise ValueError(f"--{name}: expected at least 1, got {getattr(args, name)}")
     out = args.out or Path("bench_runs") / ("stability-quick" if args.quick else "stability-full")
+    models = [n.strip() for n in args.models.split(",") if n.strip()] or None
     r = run_stability(
         rig=args.rig,
         quick=args.quick,
@@ -754,29 +809,55 @@ def _stability(args: argparse.Namespace) -> int:
         subtasks=args.subtasks,
         starts=args.starts,
         workers=args.workers,
+        models=models,
         progress=not args.json,
     )
     chart = stability_chart(r, args.chart or out / "stability.png")
     r["chart"] = str(chart)
-    print(f"stability ({'quick' if r['quick'] else 'full'}): chart {chart}")
-    print("  horizon R   " + "".join(f"{row['rounds']:>7}" for row in r["horizon"]["rows"]))
-    print("  HFR         " + "".join(f"{num(row['hfr']):>7}" for row in r["horizon"]["rows"]))
-    f = r["failure_faithfulness"]
+    p = r["probe_protocol"]
     print(
-        f"  failure faithfulness: {pct(f['imagined_also_failed'])} % of {f['real_failures']} real failures also "
-        f"failed imagined; {pct(f['imagined_also_succeeded'])} % of {f['real_successes']} successes succeeded"
+        f"stability ({'quick' if r['quick'] else 'full'}): {len(r['models'])} model(s), {p['starts']} probe starts, "
+        f"{len(r['refused'])} probe chunk(s) refused, {r['wall_s']} s; chart {chart}"
     )
-    for row in r["counterfactual"]["rows"]:
-        head = row["cam_high"]
-        print(f"  counterfactual policy vs {row['alternative']}: head MSE ratio pred/real {num(head['ratio_median'])}")
-    print(
-        "  calibration shift px → head PSNR: "
-        + ", ".join(f"{row['shift_px']:g}: {num(row['psnr_head'])}" for row in r["calibration"]["rows"])
-    )
-    print(
-        "  OOD actions → head PSNR: "
-        + ", ".join(f"{row['kind']}: {num(row['psnr_head'])}" for row in r["ood_actions"]["rows"])
-    )
+    for name, m in r["models"].items():
+        print(f"[{name}] {m['label']}")
+        rows = m["horizon"]["rows"]
+        print("  horizon R " + "".join(f"{row['rounds']:>7}" for row in rows))
+        print("  HFR       " + "".join(f"{num(row['hfr'], 3):>7}" for row in rows))
+        f = m["failure_faithfulness"]
+        print(
+            f"  failure faithfulness: {pct(f['imagined_also_failed'])} % of {f['real_failures']} real failures also "
+            f"failed imagined; {pct(f['imagined_also_succeeded'])} % of {f['real_successes']} successes succeeded"
+        )
+        print(
+            "  counterfactual, head MSE ratio model/sim: "
+            + ", ".join(
+                f"vs {row['alternative']} {num(row['cam_high']['ratio_median'])}" for row in m["counterfactual"]["rows"]
+            )
+        )
+        errors = m["calibration"]["rows"] + m["robot_mismatch"]["rows"]
+        print(f"  head PSNR {num(errors[0]['psnr_head'])} dB on the right rig; change with a wrong one, dB:")
+        for row in errors[1:]:
+            if row["applies"]:
+                print(
+                    f"    {row['label']}: {num(row['delta_db'])} ("
+                    + ", ".join(f"{v} {num(d)}" for v, d in row["delta_per_view"].items())
+                    + ")"
+                )
+            else:
+                print(f"    {row['label']}: does not reach this model")
+        print(
+            "  OOD actions → head PSNR: "
+            + ", ".join(f"{row['kind']} {num(row['psnr_head'])}" for row in m["ood_actions"]["rows"])
+        )
+        sh = m["action_shuffle"]
+        head = sh["per_view"].get("cam_high") or {}
+        print(
+            f"  action shuffle ({sh['rounds']} rounds, {sh['n']} starts), head view: MSE ratio model/sim "
+            f"{num(head.get('ratio_median'))}, futures differ in {pct(head.get('distinct_share'))} %; PSNR shuffled "
+            f"{num(head.get('psnr_shuffled'))} vs own {num(head.get('psnr_own'))} dB; deterministic "
+            f"{pct(sh['deterministic_share'])} %"
+        )
     return emit(args, r)
 
 

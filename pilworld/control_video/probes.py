@@ -10,6 +10,9 @@ builds the wrong rigs and measures how much the render itself moves:
 * :func:`perturbed_cameras` — the rig's cameras with head extrinsics and wrist mount errors;
 * :func:`mismatched_robot` — the robot model with scaled link radii and other colours;
 * :func:`perturbed_gamma_plus` — Γ⁺ built from both (the head error moves render and markers together);
+* :func:`shifted_principal_point` — a camera whose principal point is off by some pixels (an intrinsics error);
+* :func:`perturbed_rig` — the rig config as a wrong calibration describes it (its calibration files
+  rewritten with the errors), for whatever reads the rig's geometry (world model v2 binds it);
 * :func:`render_sensitivity` — per perturbation, the IoU of the perturbed robot mask against the nominal
   one in every view and the pixel shift of the TCPs in the head view (a JSON-able summary).
 
@@ -22,12 +25,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.camera_model import CameraModel
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.cameras import RigCameras, ViewCamera
 from pilworld.control_video.gamma_plus import GammaPlus
@@ -35,7 +40,7 @@ from pilworld.control_video.robot_model import RobotModel
 from pilworld.control_video.robot_render import Backend, make_robot_renderer
 from pilworld.control_video.style import ControlVideoStyle
 from pilworld.control_video.styles import Style
-from pilworld.geometry import is_rigid_transform
+from pilworld.geometry import invert_transform, is_rigid_transform, matrix_to_pose
 from pilworld.types import HEAD_VIEW, STATE_DIM, ChunkSpec
 
 F64 = NDArray[np.float64]
@@ -199,6 +204,71 @@ def _cameras(base: RigCameras, p: Perturbation) -> RigCameras:
             T = perturb_transform(v.model.T_cam_base, p.head_translation_m, p.head_rotation_deg, rng)
         views.append(ViewCamera(v.name, v.model.with_pose(T), v.arm))
     return RigCameras(base.kinematics, tuple(views))
+
+
+def shifted_principal_point(camera: CameraModel, shift_px: float) -> CameraModel:
+    """``camera`` with its principal point moved ``shift_px`` pixels diagonally (``shift_px / √2`` along
+    each image axis): every projection moves by ``shift_px`` pixels. Zero returns an equal camera."""
+    d = _size(shift_px, "shift_px") / math.sqrt(2.0)
+    K = np.array(camera.K, dtype=np.float64)
+    K[0, 2] += d
+    K[1, 2] += d
+    return replace(camera, K=K)
+
+
+def perturbed_rig(
+    rig: RigConfig,
+    folder: str | Path,
+    *,
+    principal_shift_px: float = 0.0,
+    head_translation_m: float = 0.0,
+    head_rotation_deg: float = 0.0,
+    wrist_translation_m: float = 0.0,
+    wrist_rotation_deg: float = 0.0,
+    seed: int = 0,
+) -> RigConfig:
+    """``rig`` as a wrong calibration describes it: a rig config whose cameras carry the errors.
+
+    The head camera (principal point moved ``principal_shift_px`` px diagonally, extrinsics as
+    :func:`perturbed_cameras` moves them) is written to ``folder/cam_high.yaml`` as the calibration file
+    a real rig's ``head_camera.file`` points to; a wrist camera with a mount error gets its
+    ``pose_in_tcp`` moved by the same error (and its calibration file rewritten, if it has one). Whatever
+    reads the rig's geometry — Γ, Γ⁺, world model v2's layers and tracked objects — then sees the same
+    wrong cameras. Arms, robot model and image size are ``rig``'s (see :func:`mismatched_robot` for a
+    wrong robot model). The head camera goes through the file even without an error, so all zeros
+    reproduce ``rig``'s cameras bit for bit along the same path. ``folder`` must outlive the rig's use.
+    """
+    shift = _size(principal_shift_px, "principal_shift_px")
+    cams = perturbed_cameras(
+        rig,
+        head_translation_m=head_translation_m,
+        head_rotation_deg=head_rotation_deg,
+        wrist_translation_m=wrist_translation_m,
+        wrist_rotation_deg=wrist_rotation_deg,
+        seed=seed,
+    )
+    root = Path(folder)
+    root.mkdir(parents=True, exist_ok=True)
+    data = rig.model_dump()
+    head_file = root / f"{HEAD_VIEW}.yaml"
+    shifted_principal_point(cams.view(HEAD_VIEW).model, shift).to_yaml(head_file)
+    data["head_camera"] = {"file": str(head_file)}
+    for view in cams.views:
+        if view.arm is None:
+            continue
+        nominal = rig.wrist_camera_model(view.name).T_cam_base  # T_cam_tcp
+        if np.array_equal(view.model.T_cam_base, nominal):
+            continue
+        error = view.model.T_cam_base @ invert_transform(nominal)  # the mount error, on the camera side
+        cfg = data["wrist_cameras"][view.name]
+        mount = rig.wrist_cameras[view.name].pose_in_tcp.matrix()  # T_tcp_cam of the designed mount
+        xyz, rpy = matrix_to_pose(invert_transform(error @ invert_transform(mount)))
+        cfg["pose_in_tcp"] = {"xyz": tuple(float(x) for x in xyz), "rpy": tuple(float(x) for x in rpy)}
+        if cfg.get("file") is not None:
+            wrist_file = root / f"{view.name}.yaml"
+            view.model.to_yaml(wrist_file)
+            cfg["file"] = str(wrist_file)
+    return RigConfig.model_validate(data)
 
 
 def mismatched_robot(

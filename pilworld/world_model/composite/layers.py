@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma_plus import GammaPlus
 from pilworld.control_video.reprojection import plane_homography
+from pilworld.control_video.robot_model import RobotModel
 from pilworld.types import ARM_LAYOUT, STATE_DIM, ChunkSpec
 
 U8 = NDArray[np.uint8]
@@ -91,12 +92,15 @@ def hold_spans(grips: NDArray[np.floating]) -> tuple[int | None, int | None]:
 
 
 class LayerBuilder:
-    """``builder(current_images, current_state, stride_actions) -> ChunkLayers`` for one rig."""
+    """``builder(current_images, current_state, stride_actions) -> ChunkLayers`` for one rig.
 
-    def __init__(self, rig: RigConfig, spec: ChunkSpec | None = None) -> None:
+    ``robot``: the robot model to render instead of the rig's (a mismatched model, for the stability
+    probes; default: ``RobotModel.from_rig(rig)``)."""
+
+    def __init__(self, rig: RigConfig, spec: ChunkSpec | None = None, robot: RobotModel | None = None) -> None:
         self.spec = spec or ChunkSpec()
         self.rig = rig
-        self.gamma = GammaPlus(rig, "render+prior", spec=self.spec)
+        self.gamma = GammaPlus(rig, "render+prior", spec=self.spec, robot=robot)
         self.cameras = self.gamma.cameras
         self.kinematics = rig.kinematics
         self.views = self.cameras.names

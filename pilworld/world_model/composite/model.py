@@ -25,6 +25,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from pilworld.config.rig import RigConfig
+from pilworld.control_video.robot_model import RobotModel
 from pilworld.perception.colour import segment
 from pilworld.types import DEFAULT_VIEWS, HEAD_VIEW, ChunkSpec
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo
@@ -279,6 +280,7 @@ class CompositeWorldModel(nn.Module):
         self.plate: torch.Tensor
         self.register_buffer("plate", torch.zeros(3, config.image_size, config.image_size))
         self._rig = rig
+        self._robot: RobotModel | None = None  # bind_rig's robot model; None: the rig's
         self._builder: LayerBuilder | None = None
         self._scene: ObjectScene | None = None  # the rollout's objects (begin_rollout), advanced per chunk
         self._scene_key: tuple[str, NDArray[np.float32]] | None = None  # the request that continues it
@@ -294,13 +296,17 @@ class CompositeWorldModel(nn.Module):
             views=c.views, height=c.image_size, width=c.image_size, future=c.future, history=c.history
         )
 
-    def bind_rig(self, rig: RigConfig) -> None:
-        """Composite with ``rig``'s robot model and cameras (default: the rig the model was trained on)."""
+    def bind_rig(self, rig: RigConfig, *, robot: RobotModel | None = None) -> None:
+        """Composite with ``rig``'s robot model and cameras (default: the rig the model was trained on).
+
+        ``robot``: render this robot model instead of ``rig``'s (a mismatched one, for the stability probes;
+        a wrong camera calibration is a rig of its own, :func:`pilworld.control_video.probes.perturbed_rig`)."""
         if (rig.image_size.width, rig.image_size.height) != (self.config.image_size, self.config.image_size):
             raise ValueError(
                 f"rig {rig.name!r}: image size {rig.image_size} differs from the model's {self.config.image_size}"
             )
         self._rig = rig
+        self._robot = robot
         self._builder = None
         self._scene = None
 
@@ -339,7 +345,7 @@ class CompositeWorldModel(nn.Module):
     def builder(self) -> LayerBuilder:
         if self._builder is None:
             rig = self._rig or RigConfig.load(self.config.rig_path())
-            self._builder = LayerBuilder(rig, ChunkSpec(frames=self.config.future))
+            self._builder = LayerBuilder(rig, ChunkSpec(frames=self.config.future), robot=self._robot)
         return self._builder
 
     # ------------------------------------------------------------------ inference
