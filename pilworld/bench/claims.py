@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -192,4 +193,17 @@ def paper_claims(verdicts: Mapping[str, Verdicts], **kwargs: Any) -> list[dict[s
         c = compare(verdicts[better], verdicts[worse], **kwargs)
         c["direction"] = {k: direction(c["difference"][k], c["ci95"][k], s) for k, s in DECIDING.items()}
         out.append({"claim": name, "better": better, "worse": worse, "text": claim, **c})
+    return out
+
+
+def steps(verdicts: Mapping[str, Verdicts], names: Sequence[str], **kwargs: Any) -> list[dict[str, Any]]:
+    """Each row of a ladder against the row before it (``to`` − ``from``, paired on the same pairs), with the
+    direction of the step: ``holds`` where the later row is better. The Γ⁺ ablation reads as such a ladder,
+    from the paper's markers to the shipped render + prior + paste."""
+    present = [n for n in names if n in verdicts]
+    out = []
+    for prev, nxt in pairwise(present):
+        c = compare(verdicts[nxt], verdicts[prev], **kwargs)
+        c["direction"] = {k: direction(c["difference"][k], c["ci95"][k], s) for k, s in DECIDING.items()}
+        out.append({"from": prev, "to": nxt, **c})
     return out

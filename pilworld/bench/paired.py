@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from pilworld.bench.claims import Verdicts, agreement, paper_claims
+from pilworld.bench.claims import Verdicts, agreement, paper_claims, steps
 from pilworld.bench.common import machine_info
 from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants, v2_variants
 
@@ -225,5 +225,8 @@ def run_paired_bench(
     out_json["baseline"] = rows[baseline] if baseline else None
     out_json["gamma_plus_rows"] = [n for n in GAMMA_PLUS_ROWS if n in rows]
     # The paper's directions, each a paired comparison on the same pairs (pilworld.bench.claims).
-    out_json["claims"] = paper_claims({name: Verdicts.load(r["out"]) for name, r in rows.items()})
+    verdicts = {name: Verdicts.load(r["out"]) for name, r in rows.items()}
+    out_json["claims"] = paper_claims(verdicts)
+    # What each step of the Γ⁺ ladder buys, paired against the step before it.
+    out_json["gamma_plus_steps"] = steps(verdicts, GAMMA_PLUS_ROWS)
     return out_json

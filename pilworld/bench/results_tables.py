@@ -79,6 +79,24 @@ def paired_tables(r: dict[str, Any]) -> str:
             row = rows[name]
             head = (row["single_step"].get("per_view") or {}).get("cam_high") or {}
             out.append(f"| {name} | {_row_cells(row)} | {num(head.get('psnr_pooled'))} |")
+    ladder = r.get("gamma_plus_steps") or []
+    if ladder:
+        out += [
+            "",
+            "Each Γ⁺ step against the row before it (later − earlier on the same pairs; 95 % paired bootstrap "
+            "intervals; |ΔSR| and agreement in points):",
+            "",
+            "| step | Δ\\|ΔSR\\| (lower is better) | ΔHFR | Δ per-pair agreement | the later row is better? "
+            "(\\|ΔSR\\| · HFR · agreement) |",
+            "|---|---|---|---|---|",
+        ]
+        for c in ladder:
+            d, ci, v = c["difference"], c["ci95"], c["direction"]
+            out.append(
+                f"| {c['from']} → {c['to']} | {pct(d['abs_delta_sr'], ci.get('abs_delta_sr'))} | "
+                f"{num(d['hfr'], 3, ci.get('hfr'))} | {pct(d['agreement'], ci.get('agreement'))} | "
+                f"{v['abs_delta_sr']} · {v['hfr']} · {v['agreement']} |"
+            )
     claims = r.get("claims") or []
     if claims:
         out += [

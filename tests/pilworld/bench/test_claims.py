@@ -14,6 +14,7 @@ from pilworld.bench.claims import (
     compare,
     direction,
     paper_claims,
+    steps,
     wilson,
 )
 from pilworld.data.outcomes import Outcome, record_outcomes
@@ -114,3 +115,20 @@ def test_verdicts_load_from_a_judged_run(tmp_path: Path) -> None:
     rows = sorted(v.pairs.values(), key=lambda r: r[2])
     assert [(r[1], r[2]) for r in rows] == [(1.0, 0.0), (1.0, 1.0)]
     assert rows[1][3] == pytest.approx((T // 2) / T)
+
+
+def test_steps_compare_each_row_with_the_one_before_and_skip_missing_rows() -> None:
+    real = [1, 1, 0, 0] * 10
+    worst = _verdicts(real, [0] * 40, [0.1] * 40)
+    middle = _verdicts(real, [1, 0, 0, 0] * 10, [0.5] * 40)
+    best = _verdicts(real, real, [0.9] * 40)
+    out = steps({"a": worst, "b": middle, "c": best}, ["a", "missing", "b", "c"], resamples=200)
+    assert [(s["from"], s["to"]) for s in out] == [("a", "b"), ("b", "c")]
+    # a → b: one in four pairs now agrees (the real successes half-imagined), HFR +0.4 on every pair.
+    assert out[0]["difference"]["agreement"] == pytest.approx(0.25)
+    assert out[0]["difference"]["hfr"] == pytest.approx(0.4)
+    assert out[0]["direction"]["hfr"] == "holds" and out[0]["direction"]["agreement"] == "holds"
+    # b → c: |ΔSR| falls from 25 points to 0: better, so "holds" although the difference is negative.
+    assert out[1]["difference"]["abs_delta_sr"] == pytest.approx(-0.25)
+    assert out[1]["direction"]["abs_delta_sr"] == "holds"
+    assert steps({"a": worst}, ["a", "b"]) == []

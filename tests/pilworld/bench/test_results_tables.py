@@ -61,6 +61,15 @@ def test_paired_tables_print_the_rows_the_gamma_plus_ablation_and_the_claims() -
             "v2_no_history": _variant("no history", 0.75, (2, 2), (1, 2)),
         },
         "gamma_plus_rows": ["v2_markers", "pilworld"],
+        "gamma_plus_steps": [
+            {
+                "from": "v2_markers",
+                "to": "pilworld",
+                "difference": {"abs_delta_sr": -0.1, "hfr": 0.5, "agreement": 0.05},
+                "ci95": {"abs_delta_sr": [-0.2, 0.0], "hfr": [0.4, 0.6], "agreement": [-0.05, 0.1]},
+                "direction": {"abs_delta_sr": "not separated", "hfr": "holds", "agreement": "not separated"},
+            }
+        ],
         "claims": [
             {
                 "claim": "history",
@@ -80,6 +89,8 @@ def test_paired_tables_print_the_rows_the_gamma_plus_ablation_and_the_claims() -
     assert "The Γ⁺ ablation" in text and "| v2_markers | 25.0" in text and "| 24.50 |" in text
     assert "| the history memory matters | pilworld − v2_no_history | -25.0 [-50.0, -5.0] |" in text
     assert "holds · not separated · not separated" in text
+    assert "| v2_markers → pilworld | -10.0 [-20.0, 0.0] | 0.500 [0.400, 0.600] |" in text
+    assert "not separated · holds · not separated |" in text
     assert "| v2_no_history | sort_cubes | 50.0 | 75.0 |" in text
     # Without the new keys (a result of an older bench), the tables still print.
     old = {"variants": {"pilworld": {k: v for k, v in r["variants"]["pilworld"].items() if k != "agreement"}}}
