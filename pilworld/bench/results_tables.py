@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +56,16 @@ _HEAD = (
 )
 
 
+def _comparison_cells(c: Mapping[str, Any]) -> str:
+    """The cells every paired comparison prints (pilworld.bench.claims.compare plus its direction):
+    Δ|ΔSR|, ΔHFR, Δ per-pair agreement with their intervals, then the three directions."""
+    d, ci, v = c["difference"], c["ci95"], c["direction"]
+    return (
+        f"{pct(d['abs_delta_sr'], ci.get('abs_delta_sr'))} | {num(d['hfr'], 3, ci.get('hfr'))} | "
+        f"{pct(d['agreement'], ci.get('agreement'))} | {v['abs_delta_sr']} · {v['hfr']} · {v['agreement']}"
+    )
+
+
 def paired_tables(r: dict[str, Any]) -> str:
     rows = r["variants"]
     first = next(iter(rows.values()))["overall"]
@@ -91,12 +101,7 @@ def paired_tables(r: dict[str, Any]) -> str:
             "|---|---|---|---|---|",
         ]
         for c in ladder:
-            d, ci, v = c["difference"], c["ci95"], c["direction"]
-            out.append(
-                f"| {c['from']} → {c['to']} | {pct(d['abs_delta_sr'], ci.get('abs_delta_sr'))} | "
-                f"{num(d['hfr'], 3, ci.get('hfr'))} | {pct(d['agreement'], ci.get('agreement'))} | "
-                f"{v['abs_delta_sr']} · {v['hfr']} · {v['agreement']} |"
-            )
+            out.append(f"| {c['from']} → {c['to']} | {_comparison_cells(c)} |")
     claims = r.get("claims") or []
     if claims:
         out += [
@@ -109,13 +114,7 @@ def paired_tables(r: dict[str, Any]) -> str:
             "|---|---|---|---|---|---|",
         ]
         for c in claims:
-            d, ci, v = c["difference"], c["ci95"], c["direction"]
-            out.append(
-                f"| {c['text']} | {c['better']} − {c['worse']} | "
-                f"{pct(d['abs_delta_sr'], ci.get('abs_delta_sr'))} | {num(d['hfr'], 3, ci.get('hfr'))} | "
-                f"{pct(d['agreement'], ci.get('agreement'))} | "
-                f"{v['abs_delta_sr']} · {v['hfr']} · {v['agreement']} |"
-            )
+            out.append(f"| {c['text']} | {c['better']} − {c['worse']} | {_comparison_cells(c)} |")
     out += [
         "",
         "Per task (SR in %, HFR as a fraction; 95 % bootstrap intervals over subtasks):",

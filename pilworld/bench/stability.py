@@ -64,11 +64,10 @@ camera errors from ``ERROR_SEED``.
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
 import multiprocessing as mp
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -636,18 +635,6 @@ class _Prober:
         return rec
 
 
-@contextlib.contextmanager
-def one_torch_thread() -> Iterator[None]:
-    """Torch on one thread meanwhile: the models' small convolutions and per-pixel blends run slower split over
-    two busy cores (the simulator, the judges' processes and the other variants' processes share them)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(threads)
-
-
 def probe(
     *,
     rig: str | Path,
@@ -672,8 +659,11 @@ def probe(
         t = make_task(task)
         plan += plan_subtasks(task, starts, seed0, checkpoints, t.num_subtasks, t.instruction)
     records: dict[str, list[dict[str, Any]]] = {v.name: [] for v in variants}
+    # Imported here: pilworld.imagine.branch and pilworld.paired import each other (as in imagine/runner.py).
+    from pilworld.imagine.branch import torch_threads
+
     with (
-        one_torch_thread(),
+        torch_threads(1),
         tempfile.TemporaryDirectory(prefix="pilworld-stability-") as folder,
         SimStation(rig, tasks[0]) as station,
     ):
@@ -861,6 +851,9 @@ def run_stability(
         "models": variants,
         "seed0": PROBE_SEED0,
     }
+    # Imported here: pilworld.imagine.branch and pilworld.paired import each other (as in imagine/runner.py).
+    from pilworld.imagine.branch import torch_threads
+
     # The probes run in a process of their own beside the horizon runs (one core each most of the time: the
     # paired runs are sequential), unless a single process was asked for.
     with concurrent.futures.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
@@ -869,7 +862,7 @@ def run_stability(
             if progress:
                 print("probes: in a process of their own, beside the horizon runs", flush=True)
             probing = pool.submit(_probe_job, probe_args)
-        with one_torch_thread():
+        with torch_threads(1):
             results = evaluate_variants(
                 variants, proto, Path(out) / "horizon", rig=rig, workers=workers, progress=progress, single_step=False
             )
