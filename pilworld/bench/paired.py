@@ -10,7 +10,7 @@ task × checkpoint settings Pearson, Spearman and MMRV — all with bootstrap in
 view from each pair's first round, and the paper's claims as paired comparisons (:mod:`pilworld.bench.claims`).
 
 ``--quick`` (≤ 5 minutes on a 2-core CPU): 3 tasks × 2 checkpoints × 3 subtasks, :data:`QUICK_VARIANTS`. The
-full protocol: 3 tasks × 5 checkpoints × 10 subtasks = 150 pairs per variant (docs/RESULTS.md; ``--subtasks 20``
+full protocol: 3 tasks × 5 checkpoints × 8 subtasks = 120 pairs per variant (docs/RESULTS.md; ``--subtasks 20``
 gives the 300 pairs of the v2 release figures). Layouts come
 from seed 6,000,000 on (reserved for this benchmark; training used 0–19). v1 and its baselines of 2026-11-22
 run by name (``--variants pilworld_v1,ctrl_world,pilworld_3500,no_history,success_only``).
@@ -45,9 +45,11 @@ FULL_VARIANTS = (
 QUICK_VARIANTS = ("pilworld", "v2_paper_gamma", "v2_ctrl_world")
 # The Γ⁺ ablation rows, from the paper's markers to the shipped render + prior + paste.
 GAMMA_PLUS_ROWS = ("v2_markers", "v2_render", "v2_render_prior", "pilworld")
-# 150 pairs per variant: nine variants at 300 pairs would not fit the full set's 90 minutes on a 2-core CPU
-# (each variant's imagined branch, judging and metrics cost 10-30 minutes at 150 pairs; the real branches run once).
-FULL_SUBTASKS = 10
+# 120 pairs per variant, so that the full set (scripts/bench-results) stays within 90 minutes on a 2-core CPU:
+# each variant's imagined branch, judging and single-step metrics cost ~12 core-minutes at 150 pairs (two
+# variants run side by side; the real branches run once), and nine variants at 150 pairs with the other two
+# benches came to ~100 minutes on idle cores. ``--subtasks 10`` gives the 150 pairs of 2026-12-05's first table.
+FULL_SUBTASKS = 8
 # Our targets and the paper's figures (docs/RESULTS.md; paper Table 1, average over tasks).
 TARGETS = {"abs_delta_sr": 0.05, "hfr": 0.85, "pearson": 0.95}
 PAPER = {"abs_delta_sr": 0.120, "hfr": 0.701, "pearson": 0.94}

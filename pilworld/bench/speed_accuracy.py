@@ -36,7 +36,10 @@ single-step image error is kept as a secondary column (it ranked v1's presets, a
   with the clips' joint states, which gives it no history frames (its memory layer is empty): a lower bound.
 * closed loop (:func:`~pilworld.bench.variants.evaluate_variants`, real branches run once and shared by every
   point): |ΔSR|, HFR, SR_imag, SR_real and their 95 % intervals on 3 tasks × 2 checkpoints ×
-  :data:`CLOSED_LOOP_SUBTASKS` subtasks = 18 pairs, for **every** trained point.
+  :data:`CLOSED_LOOP_SUBTASKS` subtasks = 18 pairs, for every trained v2 point and v1 at 1 and 16 steps
+  (:func:`closed_loop_steps`; v1 at 2, 4 and 8 steps keeps its latency and single-step figures).
+
+``stages_s`` gives the wall time of each stage (latency, single step, closed loop).
 
 **Quick mode** (``--quick``): v1 at 1, 4 and 16 steps, 24 held-out clips, 1 + 3 timed rounds per point, and the
 closed loop too, small: 1 subtask per task × checkpoint (6 pairs), v1 at 1 step only plus every v2 point (the
@@ -482,7 +485,7 @@ def run_speed_accuracy(
     warmup = QUICK_WARMUP if quick else FULL_WARMUP
     loop = True if closed_loop is None else closed_loop
     n_sub = subtasks or (QUICK_CLOSED_LOOP_SUBTASKS if quick else CLOSED_LOOP_SUBTASKS)
-    loop_steps = QUICK_CLOSED_LOOP_STEPS if quick else None
+    loop_steps = closed_loop_steps(chosen_steps, quick)
     if len({m.key for m in chosen_models}) != len(chosen_models):
         raise ValueError(f"models: a model is listed twice: {[m.key for m in chosen_models]}")
     present: list[TrainedModel] = []
@@ -522,6 +525,8 @@ def run_speed_accuracy(
     live = [p for p in points if not p.get("skipped")]
     by_model = {m.key: m for m in chosen_models}
 
+    stages: dict[str, float] = {}
+    t_stage = time.monotonic()
     # 1. Latency: one whole imagined round per point, round-robin (a slowing machine slows every point alike).
     if progress:
         print(f"[speed-accuracy] timing {len(live)} points: {warmup} + {n_repeats} rounds each", flush=True)
@@ -540,6 +545,8 @@ def run_speed_accuracy(
         p["predict_latency_ms"] = round(1000.0 * float(np.median(predict)), 2)
         p["realtime_factor"] = round(chunk_robot_s * 1000.0 / ms, 3)
 
+    stages["latency"] = round(time.monotonic() - t_stage, 1)
+    t_stage = time.monotonic()
     # 2. Single-step accuracy on held-out clips (the held-out set of `pilworld bench world-model`, its cache shared).
     heldout = None
     if any(not p.get("untrained") for p in live):
@@ -572,13 +579,16 @@ def run_speed_accuracy(
         if p["family"] == "v2":
             p["single_step_note"] = "predict_batch with the clips' joint states and no history frames (memory empty)"
 
-    # 3. Closed loop: every trained point (quick: v1 at 1 step and every v2 point), real branches shared.
+    stages["single_step"] = round(time.monotonic() - t_stage, 1)
+    t_stage = time.monotonic()
+    # 3. Closed loop: every v2 point and v1 at closed_loop_steps (1 and 16; quick: 1), real branches shared.
     if loop:
         closed = _closed_loop(
             points, by_model, out, rig=rig, subtasks=n_sub, steps=loop_steps, workers=workers, progress=progress
         )
     else:
         closed = {"skipped": "closed_loop=False"}
+    stages["closed_loop"] = round(time.monotonic() - t_stage, 1)
 
     front = pareto_front(points)
     default: dict[str, Any]
@@ -613,8 +623,22 @@ def run_speed_accuracy(
         "heldout_clips": n_clips,
         "latency_repeats": n_repeats,
         "machine": machine_info(),
+        "stages_s": stages,
         "wall_s": round(time.monotonic() - t0, 1),
     }
+
+
+def closed_loop_steps(chosen: Sequence[int], quick: bool) -> tuple[int, ...]:
+    """The v1 sampling steps that run in closed loop (every v2 point runs): quick, 1 step; full, the fewest and
+    the most of ``chosen`` (1 and 16 by default).
+
+    The steps between cost ~9 minutes of the full set's 90 on a 2-core CPU and told nothing apart on 2026-12-05:
+    every v1 point at 1…16 steps failed every rollout (|ΔSR| 50-56, HFR < 0.08). Fewest → most answers what
+    sampling steps buy in closed loop; the points between keep their latency and single-step figures.
+    """
+    if quick:
+        return QUICK_CLOSED_LOOP_STEPS
+    return tuple(sorted({min(chosen), max(chosen)}))
 
 
 def _closed_loop(
@@ -642,7 +666,7 @@ def _closed_loop(
             continue
         m = models[p["model"]]
         if m.family == "v1" and steps is not None and p["steps"] not in steps:
-            p["closed_loop"] = f"not run (quick mode: v1 at {', '.join(map(str, steps))} step(s) only)"
+            p["closed_loop"] = f"not run (closed loop: v1 at {', '.join(map(str, steps))} step(s) only)"
             continue
         variants.append(
             ModelVariant(

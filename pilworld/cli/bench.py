@@ -190,7 +190,12 @@ def register(sub: Any) -> None:
         default="",
         help="comma-separated variants (default: by mode; see docs/RESULTS.md); NAME=PATH adds a model folder",
     )
-    pt.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 3 quick / 10)")
+    pt.add_argument(
+        "--subtasks",
+        type=int,
+        default=None,
+        help="subtasks per task × checkpoint (default 3 quick / 8: 120 pairs per variant)",
+    )
     pt.add_argument("--seed", type=int, default=None, help="first layout seed (default 6000000)")
     pt.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
     pt.add_argument(

@@ -96,7 +96,7 @@ def test_protocol_values() -> None:
     assert (quick.subtasks, quick.rounds, quick.seed, quick.pairs) == (3, 5, 6_000_000, 18)
     full = protocol(False)
     assert full.checkpoints == tuple(policy_names()) and len(full.checkpoints) == 5
-    assert (full.subtasks, full.rounds, full.seed, full.pairs) == (10, 5, 6_000_000, 150)
+    assert (full.subtasks, full.rounds, full.seed, full.pairs) == (8, 5, 6_000_000, 120)
     custom = protocol(True, subtasks=2, seed=7, rounds=3)
     assert (custom.subtasks, custom.seed, custom.rounds, custom.checkpoints) == (2, 7, 3, QUICK_CHECKPOINTS)
 

@@ -30,11 +30,13 @@ from pilworld.bench.speed_accuracy import (
     KNEE_HFR,
     SHIPPED,
     SINGLE_STEP_OBJECTIVES,
+    STEPS,
     TrainedModel,
     _closed_loop,
     _load,
     choose_knee,
     choose_single_step_default,
+    closed_loop_steps,
     default_models,
     knee_tolerances,
     parameter_count,
@@ -440,6 +442,13 @@ def test_closed_loop_runs_every_trained_point_as_a_variant(monkeypatch: pytest.M
     assert points[2]["abs_delta_sr"] is None and "ci95" not in points[2] and "ci95" not in points[4]
 
 
+def test_closed_loop_steps_full_mode_runs_v1_at_fewest_and_most_steps() -> None:
+    assert closed_loop_steps(STEPS, quick=False) == (1, 16)
+    assert closed_loop_steps((4, 2, 8), quick=False) == (2, 8)
+    assert closed_loop_steps((4,), quick=False) == (4,)
+    assert closed_loop_steps(STEPS, quick=True) == (1,)
+
+
 def test_closed_loop_quick_runs_v1_at_its_steps_only(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     calls: list[dict[str, Any]] = []
     monkeypatch.setattr(sa, "evaluate_variants", _fake_evaluate(calls))
@@ -452,7 +461,7 @@ def test_closed_loop_quick_runs_v1_at_its_steps_only(monkeypatch: pytest.MonkeyP
     info = _closed_loop(points, models, tmp_path, rig=SIM, subtasks=1, steps=(1,), workers=None, progress=False)
     assert [v.name for v in calls[0]["variants"]] == ["tiny_32_s1", SHIPPED]
     assert info["pairs_per_point"] == 6 and info["v1_steps"] == [1]
-    assert points[1]["abs_delta_sr"] is None and "quick mode" in points[1]["closed_loop"]
+    assert points[1]["abs_delta_sr"] is None and "v1 at 1 step(s) only" in points[1]["closed_loop"]
     with pytest.raises(ValueError, match="no trained point"):
         _closed_loop(points[1:2], models, tmp_path, rig=SIM, steps=(1,), workers=None, progress=False)
 
@@ -572,11 +581,12 @@ def test_sweep_wiring_on_fake_models(fake_sweep: dict[str, Any], quick: bool) ->
     assert out == tmp / "out"
     if quick:
         assert [v.name for v in variants] == ["tiny_32_s1", "small_128_s1", SHIPPED] and proto.pairs == 6
-        assert "quick mode" in by["tiny_32_s4"]["closed_loop"] and by["tiny_32_s4"]["abs_delta_sr"] is None
+        assert "v1 at 1 step(s) only" in by["tiny_32_s4"]["closed_loop"] and by["tiny_32_s4"]["abs_delta_sr"] is None
     else:
         assert [v.name for v in variants] == ["tiny_32_s1", "tiny_32_s4", "small_128_s1", "small_128_s4", SHIPPED]
         assert proto.pairs == 18
     assert r["closed_loop"]["pairs_per_point"] == proto.pairs
+    assert set(r["stages_s"]) == {"latency", "single_step", "closed_loop"} and min(r["stages_s"].values()) >= 0
 
     assert SHIPPED in r["front_ids"] and "tiny_32_s1" in r["front_ids"] and "v2_w8" not in r["front_ids"]
     assert all(not i.startswith("base") for i in r["front_ids"])
