@@ -196,6 +196,7 @@ class SimBackend:
 
     ``task``/``seed``/``subtask``: the scene set up at start (``SimRobot.reset``). :meth:`call` runs any
     function of the ``SimRobot`` on the simulation thread (reset a subtask, read the privileged checker).
+    ``stream_sizes``: per camera, the (width, height) its frames are rendered at (same field of view).
     """
 
     def __init__(
@@ -206,6 +207,7 @@ class SimBackend:
         seed: int = 0,
         subtask: int = 0,
         camera_fps: float = 10.0,
+        stream_sizes: dict[str, tuple[int, int]] | None = None,
         start_timeout: float = 60.0,
     ) -> None:
         from hw_drivers.sim.robot import DEFAULT_RIG
@@ -216,6 +218,8 @@ class SimBackend:
         self._task = task
         self._seed, self._subtask = seed, subtask
         self._camera_period = 1.0 / camera_fps
+        # Per camera, (width, height) of the frames served (a real camera's full resolution); default the rig's.
+        self._sizes = dict(stream_sizes or {})
         self._lock = threading.Lock()
         self._calls: queue.Queue[tuple[Callable[[Any], Any], Future[Any], bool]] = queue.Queue()
         self._stop = threading.Event()
@@ -285,7 +289,9 @@ class SimBackend:
             robot.disconnect()
 
     def _render_all(self, robot: Any) -> None:
-        frames = {cam: (robot.render(cam), time.monotonic()) for cam in robot.spec.cameras}
+        frames = {}
+        for cam in robot.spec.cameras:
+            frames[cam] = (robot.render(cam, *self._sizes.get(cam, (None, None))), time.monotonic())
         with self._lock:
             self._frames.update(frames)
 

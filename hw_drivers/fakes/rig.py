@@ -58,7 +58,8 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
         rig = RigConfig.load(rig_path)
         assert rig.hardware is not None and rig.hardware.fake is not None
         hw, fake = rig.hardware, rig.hardware.fake
-        backend = SimBackend(rig, fake.task, seed=seed, subtask=subtask, camera_fps=fake.camera_fps)
+        sizes = {name: (size.width, size.height) for name, size in fake.stream_sizes.items()}
+        backend = SimBackend(rig, fake.task, seed=seed, subtask=subtask, camera_fps=fake.camera_fps, stream_sizes=sizes)
         faults = {d: FaultSwitch(seed=i) for i, d in enumerate(DEVICES)}
         arm_hosts: dict[str, str] = {}
         gripper_ports: dict[str, str] = {}
@@ -106,6 +107,7 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
             backend.close()
         return
 
+    person: dict[str, Any] = {"rig": rig}  # the calibration person's state (hw_drivers.fakes.calibration_person)
     try:
         while True:
             try:
@@ -116,10 +118,12 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
                 conn.send(("ok", None))
                 break
             try:
-                conn.send(("ok", _handle(backend, faults, op, kwargs)))
+                conn.send(("ok", _handle(backend, faults, op, kwargs, person)))
             except BaseException:
                 conn.send(("error", traceback.format_exc()))
     finally:
+        if person.get("presenter") is not None:
+            person["presenter"].stop()
         for part in reversed(started):
             try:
                 part.stop()
@@ -128,7 +132,9 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
         backend.close()
 
 
-def _handle(backend: Any, faults: dict[str, Any], op: str, kw: dict[str, Any]) -> Any:
+def _handle(backend: Any, faults: dict[str, Any], op: str, kw: dict[str, Any], person: dict[str, Any]) -> Any:
+    if op in ("board", "present", "presented"):
+        return _person(backend, op, kw, person)
     if op == "reset":
         task, seed, subtask = kw["task"], kw["seed"], kw["subtask"]
 
@@ -156,6 +162,28 @@ def _handle(backend: Any, faults: dict[str, Any], op: str, kw: dict[str, Any]) -
         faults[kw["device"]].clear(kw.get("kind"))
         return None
     raise ValueError(f"fake rig: unknown request {op!r}")
+
+
+def _person(backend: Any, op: str, kw: dict[str, Any], person: dict[str, Any]) -> Any:
+    """What the person at the rig does for a calibration (see :mod:`hw_drivers.fakes.calibration_person`)."""
+    from hw_drivers.fakes.calibration_person import BoardPresenter, place_board
+
+    presenter = person.get("presenter")
+    if op == "presented":
+        return {"shown": presenter.shown, "running": presenter.running} if presenter else {"shown": 0, "running": False}
+    if presenter is not None:  # whatever the person does next, they stop presenting first
+        presenter.stop()
+        person["presenter"] = None
+    if op == "board":
+        place_board(backend, kw["board"], kw["where"])
+        person["where"] = kw["where"]
+        return None
+    if person.get("where") != "hand":
+        raise ValueError("present: the board is not in the person's hand (board(where='hand') first)")
+    person["presenter"] = BoardPresenter(
+        backend, person["rig"], kw["board"], count=kw["count"], seed=kw["seed"], hold_s=kw["hold_s"]
+    ).start()
+    return {"poses": len(person["presenter"].poses)}
 
 
 # ---------------------------------------------------------------------------------------------- parent
@@ -241,6 +269,19 @@ class FakeRig:
 
     def object_poses(self) -> dict[str, list[float]]:
         return dict(self.request("object_poses"))
+
+    # The person at the rig during a calibration (hw_drivers.fakes.calibration_person).
+    def board(self, where: str | None, board: str | Path) -> None:
+        """Mount the board (config ``board``) on the ``left``/``right`` gripper, take it in ``hand``, or remove it."""
+        self.request("board", where=where, board=str(board))
+
+    def present_board(self, board: str | Path, *, count: int = 40, seed: int = 0, hold_s: float = 1.0) -> int:
+        """Start holding the hand board up to the head camera, ``count`` poses of ``hold_s`` each; returns the count."""
+        return int(self.request("present", board=str(board), count=count, seed=seed, hold_s=hold_s)["poses"])
+
+    def presented(self) -> dict[str, Any]:
+        """``{"shown": poses presented so far, "running": still presenting}``."""
+        return dict(self.request("presented"))
 
     def inject(self, device: str, kind: str, rate: float = 1.0) -> None:
         if device not in DEVICES:

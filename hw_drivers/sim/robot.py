@@ -20,17 +20,20 @@ from types import TracebackType
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from numpy.typing import NDArray
 
 from hw_drivers.robot import DeviceNotConnectedError
 from hw_drivers.safety import dual_arm_speed_caps
 from hw_drivers.sim.board_mount import BoardMount
 from hw_drivers.sim.gl import make_renderer, mujoco
+from hw_drivers.sim.hand_board import PARKED, HandBoard
 from hw_drivers.sim.poses import HOME_Q14
 from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, settings_for
 from hw_drivers.sim.table_board import TableBoard
 from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
 from pilworld.config.rig import RigConfig
+from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
 
 DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
@@ -63,11 +66,13 @@ class SimRobot:
         *,
         board_mount: BoardMount | None = None,
         table_board: TableBoard | None = None,
+        hand_board: HandBoard | None = None,
     ) -> None:
         self.rig = rig if isinstance(rig, RigConfig) else RigConfig.load(rig)
         self.task = make_task(task) if isinstance(task, str) else task
         self.board_mount = board_mount  # a calibration board on one gripper (visual only), or None
         self.table_board = table_board  # a calibration board lying on the table (visual only), or None
+        self.hand_board = hand_board  # a calibration board a person holds up (mocap, visual only), or None
         base = self.rig.robot_spec()
         speeds = dual_arm_speed_caps()
         self._spec = RobotSpec(
@@ -80,9 +85,7 @@ class SimRobot:
             max_joint_speed=speeds,
         )
         self.settings = settings_for(self.rig)
-        self.xml = build_mjcf(
-            self.rig, self.task.objects(), self.task.fixtures(), board_mount=board_mount, table_board=table_board
-        )
+        self.xml = self._scene_xml()
         self._model: Any = None
         self._data: Any = None
         self._renderer: Any = None
@@ -105,10 +108,11 @@ class SimRobot:
     def connect(self) -> None:
         if self._model is not None:
             return
-        assets = self.board_mount.assets() if self.board_mount is not None else None
-        if self.table_board is not None:
-            assets = {**(assets or {}), **self.table_board.assets()}
-        model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}", assets)
+        assets: dict[str, bytes] = {}
+        for board in (self.board_mount, self.table_board, self.hand_board):
+            if board is not None:
+                assets.update(board.assets())
+        model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}", assets or None)
         self._model = model
         self._data = mujoco.MjData(model)
         w, h = self._spec.image_size
@@ -254,9 +258,7 @@ class SimRobot:
                 new.check_index(subtask)
                 self.disconnect()
                 self.task = new
-                self.xml = build_mjcf(
-                    self.rig, new.objects(), new.fixtures(), board_mount=self.board_mount, table_board=self.table_board
-                )
+                self.xml = self._scene_xml()
                 self.connect()
         self.task.check_index(subtask)
         _check_int("history", history, minimum=0)
@@ -288,6 +290,54 @@ class SimRobot:
         self.steps = 0
         self.subtask = Subtask(task=self.task.name, index=subtask, instruction=self.task.instruction, seed=seed)
         return Start(subtask=self.subtask, observation=self.observe(), history=tuple(frames))
+
+    def _scene_xml(self) -> str:
+        return build_mjcf(
+            self.rig,
+            self.task.objects(),
+            self.task.fixtures(),
+            board_mount=self.board_mount,
+            table_board=self.table_board,
+            hand_board=self.hand_board,
+        )
+
+    def set_boards(self, *, board_mount: BoardMount | None = None, hand_board: HandBoard | None = None) -> None:
+        """Put a calibration board on a gripper or in a person's hand (or take it away): the scene is rebuilt.
+
+        What an operator does between calibration steps. The arms stay where they stand and keep their
+        target; the task's objects are laid out anew (seed 0). The table board, if any, stays.
+        """
+        self._require()
+        q = self.state().astype(np.float64)
+        target = self._target.copy()
+        self.disconnect()
+        self.board_mount, self.hand_board = board_mount, hand_board
+        self.xml = self._scene_xml()
+        self.connect()
+        self._set_arm_qpos(q)
+        self._target = target
+        self._apply_ctrl(target)
+        mujoco.mj_forward(self._model, self._data)
+
+    def hold_board(self, T_rig_board: npt.ArrayLike | None) -> None:
+        """Hold the hand board at ``T_rig_board`` (board frame → rig frame), or park it out of sight (None)."""
+        self._require()
+        if self.hand_board is None:
+            raise ValueError("hold_board: this scene has no hand board (set_boards(hand_board=...) first)")
+        body = self._model.body(self.hand_board.body)
+        mocap = int(body.mocapid[0])
+        if T_rig_board is None:
+            self._data.mocap_pos[mocap] = PARKED
+            self._data.mocap_quat[mocap] = (1.0, 0.0, 0.0, 0.0)
+        else:
+            T = np.asarray(T_rig_board, dtype=np.float64)
+            if T.shape != (4, 4) or not is_rigid_transform(T):
+                raise ValueError(f"hold_board: expected a rigid 4x4 transform, got {T.tolist()}")
+            quat = np.empty(4)
+            mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T[:3, :3]).reshape(9))
+            self._data.mocap_pos[mocap] = T[:3, 3]
+            self._data.mocap_quat[mocap] = quat
+        mujoco.mj_forward(self._model, self._data)
 
     def _set_arm_qpos(self, q14: NDArray[np.float64]) -> None:
         d = self._data

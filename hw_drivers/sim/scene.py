@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from hw_drivers.sim.board_mount import BoardMount
 from hw_drivers.sim.gl import mujoco  # imported through gl: the GL backend is chosen before MuJoCo loads
+from hw_drivers.sim.hand_board import HandBoard
 from hw_drivers.sim.objects import FixtureSpec, GeomSpec, ObjectSpec
 from hw_drivers.sim.table_board import TableBoard
 from pilworld.config.rig import ArmConfig, RigConfig
@@ -265,12 +266,14 @@ def build_mjcf(
     markers: Sequence[tuple[str, tuple[float, float, float], float]] = (),
     board_mount: BoardMount | None = None,
     table_board: TableBoard | None = None,
+    hand_board: HandBoard | None = None,
 ) -> str:
     """The MJCF of the rig with a task's objects and fixtures; ``markers`` are (name, xyz, radius) spheres.
 
     ``board_mount`` adds a calibration board on one gripper; its texture must then be passed to
     :func:`compile_scene` as ``assets=board_mount.assets()``. ``table_board`` adds one lying on the table
-    (``assets=table_board.assets()``), for the wrist cameras.
+    (``assets=table_board.assets()``), for the wrist cameras. ``hand_board`` adds one a person holds up
+    (a mocap body, ``assets=hand_board.assets()``), for intrinsics.
     """
     s = settings_for(rig)
     w, h = rig.image_size.width, rig.image_size.height
@@ -278,6 +281,8 @@ def build_mjcf(
     asset_xml = "" if board_mount is None else f"\n  <asset>{board_mount.asset_xml()}</asset>"
     if table_board is not None:
         asset_xml += f"\n  <asset>{table_board.asset_xml()}</asset>"
+    if hand_board is not None:
+        asset_xml += f"\n  <asset>{hand_board.asset_xml()}</asset>"
     tx = TABLE_CENTRE_X
     marker_xml = [
         f'<site name="{name}" type="sphere" pos="{_f(xyz)}" size="{r:.6g}" rgba="1 0 1 1"/>' for name, xyz, r in markers
@@ -304,6 +309,7 @@ def build_mjcf(
       friction="0.8 0.01 0.0005"/>
     {_head_camera_xml(rig)}
     {"" if table_board is None else table_board.geom_xml()}
+    {"" if hand_board is None else hand_board.body_xml()}
     {"".join(marker_xml)}
     {arms[0][0]}
     {arms[1][0]}

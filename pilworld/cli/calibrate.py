@@ -49,6 +49,7 @@ if TYPE_CHECKING:
     from pilworld.calibration.recording import Recording
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+DEFAULT_BOARD_FILE = Path(__file__).resolve().parents[2] / "configs" / "board" / "charuco_7x5_a4.yaml"
 
 
 def register(sub: Any) -> None:
@@ -65,11 +66,31 @@ def register(sub: Any) -> None:
     b.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
     b.set_defaults(handler=_board)
 
-    i = cmds.add_parser("intrinsics", help="calibrate K and distortion from ChArUco images")
-    i.add_argument("--images", type=Path, required=True, help=f"folder of images ({', '.join(IMAGE_SUFFIXES)})")
-    i.add_argument("--board", type=Path, required=True, help="board config the images show")
+    i = cmds.add_parser(
+        "intrinsics", help="calibrate K and distortion from ChArUco images, or live from a hardware rig's camera"
+    )
+    src = i.add_mutually_exclusive_group(required=True)
+    src.add_argument("--images", type=Path, help=f"folder of images ({', '.join(IMAGE_SUFFIXES)})")
+    src.add_argument(
+        "--live",
+        action="store_true",
+        help="grab frames from --camera of the hardware rig --rig while the board is moved in front of it",
+    )
+    i.add_argument("--board", type=Path, default=DEFAULT_BOARD_FILE, help="board config (default: the A4 7x5 board)")
     i.add_argument("--out", type=Path, required=True, help="camera model YAML to write")
-    i.add_argument("--name", default="cam_high", help="camera name stored in the YAML (default cam_high)")
+    i.add_argument("--name", default=None, help="camera name stored in the YAML (default: --camera, or cam_high)")
+    live = i.add_argument_group("live capture (--live)")
+    live.add_argument("--rig", type=Path, help="hardware rig config (e.g. configs/rig/fake_dual_ur5e.yaml)")
+    live.add_argument("--camera", default="cam_high", help="the rig's camera to calibrate (default cam_high)")
+    live.add_argument("--save", type=Path, help="folder for the kept frames (default: --out's name + _views)")
+    live.add_argument("--resume", action="store_true", help="continue from the frames already in --save")
+    live.add_argument("--preview", type=Path, help="PNG refreshed with the latest frame, its corners and the coverage")
+    live.add_argument("--coverage", type=float, default=0.8, help="target image coverage (default 0.8)")
+    live.add_argument("--views", type=int, default=20, help="target number of views (default 20)")
+    live.add_argument("--max-views", type=int, default=40, help="stop at this many views (default 40)")
+    live.add_argument("--rms", type=float, default=0.5, help="target running RMS in px (default 0.5)")
+    live.add_argument("--max-seconds", type=float, default=900.0, help="time limit in s (default 900)")
+    live.add_argument("--hold", type=float, default=0.6, help="fake rig: seconds the simulated person holds each pose")
     i.add_argument(
         "--dist-coeffs", type=int, default=5, choices=(4, 5, 8), help="distortion model: 4, 5 (default) or 8"
     )
@@ -239,8 +260,22 @@ def _format_report(result: IntrinsicsResult) -> str:
 def _intrinsics(args: argparse.Namespace) -> int:
     if not 0.0 <= args.held_out < 1.0:
         raise ValueError(f"--held-out: expected a fraction in [0, 1), got {args.held_out}")
+    if args.live:
+        from pilworld.cli.calibrate_live import intrinsics_live
+
+        if args.rig is None:
+            raise ValueError("--live: needs --rig, the hardware rig whose --camera to calibrate")
+        return intrinsics_live(args, lambda folder, camera: _solve_intrinsics(args, folder, args.name or camera))
+    _, report = _solve_intrinsics(args, args.images, args.name or "cam_high")
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def _solve_intrinsics(args: argparse.Namespace, folder: Path, name: str) -> tuple[CameraModel, dict[str, Any]]:
+    """Detect, calibrate, print the report and write ``--out``: the solve of a folder of images."""
     board = ChArUcoBoard.from_yaml(args.board)
-    detections, messages = _detect_folder(args.images, board)
+    detections, messages = _detect_folder(folder, board)
     for message in messages:
         print(f"pilworld: warning: {message}")
     options = IntrinsicsOptions(
@@ -249,14 +284,12 @@ def _intrinsics(args: argparse.Namespace) -> int:
         seed=args.seed,
         outlier_k=float("inf") if args.no_outlier_rejection else IntrinsicsOptions.outlier_k,
     )
-    result = calibrate_intrinsics(detections, options, name=args.name)
+    result = calibrate_intrinsics(detections, options, name=name)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     result.camera.to_yaml(args.out)
     print(_format_report(result))
     print(f"wrote {args.out}")
-    if args.json:
-        print(json.dumps({"out": str(args.out), "warnings": messages, **result.to_dict()}))
-    return 0
+    return result.camera, {"out": str(args.out), "warnings": messages, **result.to_dict()}
 
 
 # ---------------------------------------------------------------------- handeye

@@ -8,7 +8,8 @@ traceback (``--debug`` or ``PILWORLD_DEBUG=1`` shows it instead):
 * exit 1 — a run failed on something outside it: a policy server (unreachable, handshake failed,
   timeout, server error, connection closed, invalid actions or reply — :class:`PolicyError`, the line
   names the checkpoint and the kind) or a hardware run with no operator at a terminal
-  (:class:`OperatorUnavailableError`). What a run stored before the failure stays; rerunning resumes.
+  (:class:`OperatorUnavailableError`), or a calibration collection a device fault or Ctrl-C stopped
+  (:class:`CollectionStoppedError`). What a run stored before the failure stays; rerunning resumes.
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     args.argv = list(argv) if argv is not None else sys.argv[1:]  # for commands that re-launch themselves
     from hw_drivers.errors import RobotError
+    from pilworld.calibration.rig_devices import CollectionStoppedError
     from pilworld.paired.operator import OperatorUnavailableError
     from pilworld.policies.base import PolicyError
 
@@ -74,7 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.handler(args))
     # Run failures, exit 1 — a policy, a missing operator, or the rig (a stale observation, a protective stop:
     # the drivers have already stopped the arms). Caught before ValueError/OSError, which are bad input.
-    except (PolicyError, OperatorUnavailableError, RobotError) as err:
+    except (PolicyError, OperatorUnavailableError, RobotError, CollectionStoppedError) as err:
         if debug:
             raise
         print(f"pilworld: error: {_one_line(err)}", file=sys.stderr)

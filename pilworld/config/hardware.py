@@ -92,11 +92,22 @@ class CameraDriverConfig(StrictModel):
     reconnect: bool = False
 
 
+class StreamSize(StrictModel):
+    """The size of the frames a fake camera streams (its "full resolution")."""
+
+    width: int = Field(gt=0, le=4096)
+    height: int = Field(gt=0, le=4096)
+
+
 class FakeRigConfig(StrictModel):
     """Start the protocol fakes backed by the simulated rig (mocked-hardware CI, demos without a robot)."""
 
     task: str = "sort_cubes"  # the simulated scene behind the fakes
     camera_fps: float = Field(default=15.0, gt=0, le=60)
+    # Per camera, the size of the frames its fake streams (a real camera's full resolution), rendered with
+    # the rig camera's field of view, so the intrinsics scale exactly; the drivers letterbox them to the rig's
+    # image_size for the policy. Unlisted cameras stream at image_size. Calibration grabs the full frames.
+    stream_sizes: dict[str, StreamSize] = Field(default_factory=dict)
     # Loopback addresses of the two fake UR controllers (RTDE's port is fixed, so one address per arm).
     left_host: str = "127.0.0.1"
     right_host: str = "127.0.0.2"

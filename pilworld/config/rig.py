@@ -199,6 +199,19 @@ class RigConfig(StrictModel):
                     + (f"; missing {missing}" if missing else "")
                     + (f"; unknown {extra}" if extra else "")
                 )
+            fake = self.hardware.fake
+            for name, size in (fake.stream_sizes if fake is not None else {}).items():
+                if name not in self.cameras:
+                    raise ValueError(
+                        f"hardware.fake.stream_sizes: unknown camera {name!r} (the rig's: {list(self.cameras)})"
+                    )
+                w, h = self.image_size.width, self.image_size.height
+                # Same field of view and square pixels: only the rig image's aspect keeps every pixel's ray.
+                if size.width * h != size.height * w:
+                    raise ValueError(
+                        f"hardware.fake.stream_sizes.{name}: {size.width}x{size.height} has another aspect than the "
+                        f"rig's image_size {w}x{h}"
+                    )
         return self
 
     @field_validator("wrist_cameras")

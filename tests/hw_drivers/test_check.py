@@ -33,7 +33,9 @@ def test_robot_check_on_the_fake_rig(capsys: pytest.CaptureFixture[str]) -> None
     }
     assert devices["left gripper"]["driver"] == "dynamixel" and devices["right gripper"]["driver"] == "robotiq"
     assert "safety normal" in devices["left arm"]["reading"]
-    assert "128x128 frame" in devices["cam_high"]["reading"]
+    # The head camera streams its full resolution (hardware.fake.stream_sizes), the wrist cameras the rig's size.
+    assert "768x768 frame" in devices["cam_high"]["reading"]
+    assert "128x128 frame" in devices["cam_left_wrist"]["reading"]
     assert "7 of 7 devices ok" in out
 
 

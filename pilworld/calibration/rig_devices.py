@@ -1,0 +1,102 @@
+"""The devices a calibration drives on a hardware rig, through the real drivers (or the protocol fakes).
+
+A rig file with a ``hardware:`` section names the drivers (``ur_rtde`` arms, Dynamixel / Robotiq grippers,
+``OpenCVCamera`` cameras); with ``hardware.fake`` the fake rig process is started first and the drivers talk
+to its protocol fakes, exactly as :class:`pilworld.paired.stations.HardwareStation` does for a paired run.
+
+On the fake rig the simulator also stands in for the *person* at the rig (``FakeRig.board``,
+``FakeRig.present_board``): it mounts the board on a gripper, or holds it up to the camera, where a real
+operator is asked to. :func:`person_prompt` is how the commands ask a real operator.
+
+Frames for a calibration are the camera's **full-resolution** frames (``Camera.read_latest``), not the
+letterboxed policy images of ``observe()``.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from pilworld.config.rig import RigConfig
+
+__all__ = ["CollectionStoppedError", "RigCamera", "hardware_rig", "is_fake", "open_camera", "person_prompt"]
+
+
+class CollectionStoppedError(RuntimeError):
+    """A device fault, a refusal or Ctrl-C ended a calibration collection; what was recorded is kept.
+
+    The message is one line: what stopped it, how many views are kept where, and how to resume.
+    """
+
+
+def hardware_rig(rig_path: str | Path, what: str) -> RigConfig:
+    """The rig config, which must have a ``hardware:`` section (``what`` names the command in the error)."""
+    rig = RigConfig.load(rig_path)
+    if rig.hardware is None:
+        raise ValueError(
+            f"{what}: rig {rig.name!r} ({rig_path}) has no 'hardware:' section, so there is no camera or robot to "
+            "drive; on the simulated rig use the commands without --live (see docs/calibration.md), or pass a "
+            "hardware rig such as configs/rig/fake_dual_ur5e.yaml"
+        )
+    return rig
+
+
+def is_fake(rig: RigConfig) -> bool:
+    return rig.hardware is not None and rig.hardware.fake is not None
+
+
+@dataclass
+class RigCamera:
+    """One connected camera of a hardware rig; ``fake`` is the fake rig process when there is one."""
+
+    name: str
+    camera: Any  # hw_drivers.cameras.opencv.OpenCVCamera
+    max_age: float
+    fake: Any = None  # hw_drivers.fakes.rig.FakeRig
+
+    def grab(self) -> tuple[npt.NDArray[np.uint8], int]:
+        """The newest full-resolution frame (RGB) and its index; a stale or lost stream raises, typed."""
+        frame = self.camera.read_latest(self.max_age)
+        return np.asarray(frame.image, dtype=np.uint8), int(frame.index)
+
+
+@contextmanager
+def open_camera(rig_path: str | Path, name: str, *, what: str = "--live") -> Iterator[RigCamera]:
+    """Connect camera ``name`` of a hardware rig (starting the fake rig first if it is one); closes it after."""
+    from hw_drivers.factory import build_cameras
+
+    rig = hardware_rig(rig_path, what)
+    if name not in rig.cameras:
+        raise ValueError(f"--camera: rig {rig.name!r} has no camera {name!r} (its cameras: {', '.join(rig.cameras)})")
+    assert rig.hardware is not None
+    fake = None
+    camera = None
+    try:
+        endpoints = None
+        if rig.hardware.fake is not None:
+            from hw_drivers.fakes.rig import FakeRig
+
+            fake = FakeRig(rig_path)
+            endpoints = fake.start()
+        camera = build_cameras(rig, endpoints)[name]
+        camera.connect()
+        yield RigCamera(name, camera, rig.hardware.max_age, fake)
+    finally:
+        if camera is not None:
+            camera.disconnect()
+        if fake is not None:
+            fake.stop()
+
+
+def person_prompt(message: str, *, ask: Callable[[str], str] = input) -> None:
+    """Ask the operator at a real rig to do something and press Enter (refused without a terminal)."""
+    if not sys.stdin.isatty():
+        raise RuntimeError(f"{message} — but there is no terminal to confirm at (run it at the rig)")
+    ask(f"{message}; press Enter when done ")

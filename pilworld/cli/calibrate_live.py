@@ -1,0 +1,147 @@
+"""``pilworld calibrate intrinsics --live``: intrinsics from a hardware rig's camera (docs/calibration.md).
+
+Connects the rig's camera through its driver (on the fake rig, the simulator holds the board up to it),
+keeps the frames that add coverage or tilt (:mod:`pilworld.calibration.live_intrinsics`) with a running
+display, saves them to ``--save`` one by one, and solves them as a folder of images would be solved. A
+stalled or lost camera ends the collection with one line naming it; the saved views stay, and ``--resume``
+continues from them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from calib.board import ChArUcoBoard
+from calib.camera_model import CameraModel
+from calib.detect import BoardDetector
+from hw_drivers.errors import RobotError
+from pilworld.calibration.live_intrinsics import LiveTargets, ViewSelector, collect_live, load_views
+from pilworld.calibration.rig_devices import CollectionStoppedError, hardware_rig, is_fake, open_camera
+from pilworld.cli.terminal import StatusBlock, enter_pressed
+
+
+def default_views_dir(out: Path) -> Path:
+    return out.with_name(out.stem + "_views")
+
+
+def rough_camera(rig_path: Path, name: str, width: int, height: int) -> CameraModel:
+    """The rig's own model of camera ``name`` (designed or calibrated), at the frames' size: a first guess."""
+    from pilworld.config.rig import RigConfig
+    from pilworld.types import HEAD_VIEW
+
+    rig = RigConfig.load(rig_path)
+    cam = rig.head_camera_model if name == HEAD_VIEW else rig.wrist_camera_model(name)
+    return cam.resized(width, height)
+
+
+def live_truth(rig_path: Path, name: str, solved: CameraModel) -> dict[str, Any] | None:
+    """On the fake rig: how far the solved intrinsics are from the simulated camera's (None elsewhere)."""
+    from pilworld.config.rig import RigConfig
+
+    rig = RigConfig.load(rig_path)
+    if not is_fake(rig) or rig.hardware is None or rig.hardware.fake is None:
+        return None
+    size = rig.hardware.fake.stream_sizes.get(name)
+    if size is None or (size.width, size.height) != (solved.width, solved.height):
+        return None
+    true = rough_camera(rig_path, name, size.width, size.height)
+    f_true = float(true.K[0, 0])
+    return {
+        "fx_err_pct": 100.0 * (float(solved.K[0, 0]) - f_true) / f_true,
+        "fy_err_pct": 100.0 * (float(solved.K[1, 1]) - float(true.K[1, 1])) / float(true.K[1, 1]),
+        "principal_point_err_px": [float(solved.K[0, 2] - true.K[0, 2]), float(solved.K[1, 2] - true.K[1, 2])],
+        "true_K": true.K.tolist(),
+    }
+
+
+def targets_from(args: argparse.Namespace) -> LiveTargets:
+    return LiveTargets(
+        coverage=args.coverage,
+        views=args.views,
+        max_views=args.max_views,
+        rms_px=args.rms,
+        max_seconds=args.max_seconds,
+    )
+
+
+def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
+    """Collect views live, then ``solve(folder, name)`` them (the folder path of ``calibrate intrinsics``)."""
+    rig = hardware_rig(args.rig, "--live")
+    targets = targets_from(args)
+    board = ChArUcoBoard.from_yaml(args.board)
+    save: Path = args.save or default_views_dir(args.out)
+    if save.exists() and any(save.iterdir()) and not args.resume:
+        raise ValueError(f"--save: {save} already holds views; pass --resume to continue from them, or another --save")
+    detector = BoardDetector(board)
+    block = StatusBlock()
+    t0 = time.monotonic()
+    with open_camera(args.rig, args.camera) as cam:
+        image, _ = cam.grab()
+        h, w = image.shape[:2]
+        print(f"{cam.name}: {w}x{h} frames from {cam.camera.source}")
+        selector = ViewSelector((w, h), rough_camera(args.rig, args.camera, w, h).K, targets)
+        if args.resume and save.is_dir():
+            earlier = load_views(save, detector)
+            for _, _, det in earlier:
+                if det.image_size != (w, h):
+                    raise ValueError(f"--resume: {save} holds {det.image_size} frames, the camera sends {w}x{h}")
+                selector._keep(det, selector._cells(det.corners), selector._tilt(det))
+            print(f"resumed: {len(earlier)} views from {save}")
+        if cam.fake is not None:
+            # The simulator stands in for the person: it holds the board up, pose after pose.
+            cam.fake.board("hand", args.board)
+            n = cam.fake.present_board(args.board, count=2 * targets.max_views, seed=args.seed, hold_s=args.hold)
+            print(f"fake rig: the simulator holds the board up to {cam.name}, {n} poses of {args.hold} s each")
+        else:
+            print(
+                f"Hold the board ({board.name}) in front of {cam.name}: the whole image, near and far, tilted up to "
+                "~50° towards every side; hold it still for a moment at each pose. Press Enter to stop early."
+            )
+        print(f"targets: {', '.join(selector.missing()) or 'reached'}")
+        try:
+            result = collect_live(
+                cam.grab,
+                selector,
+                detector,
+                save,
+                stop_requested=enter_pressed,
+                show=block.show,
+                preview=args.preview,
+            )
+        except (RobotError, KeyboardInterrupt) as exc:
+            what = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else f"{exc}"
+            kept = len(list(save.glob("[0-9][0-9][0-9].png")))
+            raise CollectionStoppedError(
+                f"collection stopped: {what}; {kept} view(s) kept in {save}; rerun with --resume to continue"
+            ) from None
+    print(f"{result.stop}: {len(result.views)} views kept of {result.frames_seen} frames in {result.seconds:.0f} s")
+    if len(result.views) < 4:
+        raise ValueError(f"--live: only {len(result.views)} views kept ({result.stop}); a calibration needs >= 4")
+    camera, report = solve(save, args.camera)
+    truth = live_truth(args.rig, args.camera, camera)
+    if truth is not None:
+        du, dv = truth["principal_point_err_px"]
+        print(
+            f"vs the simulator's camera: focal length off by {truth['fx_err_pct']:+.3f} % (fx) and "
+            f"{truth['fy_err_pct']:+.3f} % (fy); principal point off by ({du:+.2f}, {dv:+.2f}) px at {w}x{h}"
+        )
+        report["truth"] = truth
+    report["live"] = {
+        "rig": rig.name,
+        "camera": args.camera,
+        "views_dir": str(save),
+        "views": len(result.views),
+        "frames_seen": result.frames_seen,
+        "stop": result.stop,
+        "seconds": round(time.monotonic() - t0, 1),
+        "coverage_at_stop": selector.coverage,
+        "running_rms_px": selector.rms_px,
+        "tilts_deg": [round(t, 1) for t in selector.tilts],
+    }
+    if args.json:
+        print(json.dumps(report))
+    return 0
