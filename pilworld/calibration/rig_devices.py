@@ -26,7 +26,16 @@ import numpy.typing as npt
 
 from pilworld.config.rig import RigConfig
 
-__all__ = ["CollectionStoppedError", "RigCamera", "hardware_rig", "is_fake", "open_camera", "person_prompt"]
+__all__ = [
+    "CollectionStoppedError",
+    "RigCamera",
+    "RigRobot",
+    "hardware_rig",
+    "is_fake",
+    "open_camera",
+    "open_robot",
+    "person_prompt",
+]
 
 
 class CollectionStoppedError(RuntimeError):
@@ -100,3 +109,66 @@ def person_prompt(message: str, *, ask: Callable[[str], str] = input) -> None:
     if not sys.stdin.isatty():
         raise RuntimeError(f"{message} — but there is no terminal to confirm at (run it at the rig)")
     ask(f"{message}; press Enter when done ")
+
+
+@dataclass
+class RigRobot:
+    """The connected robot of a hardware rig (arms, grippers, cameras) and the fake rig process, if any."""
+
+    rig: RigConfig
+    robot: Any  # hw_drivers.dual_arm.DualArmRobot
+    fake: Any = None  # hw_drivers.fakes.rig.FakeRig
+
+    def grab(self, camera: str, after: float | None = None, timeout: float = 5.0) -> npt.NDArray[np.uint8]:
+        """A full-resolution frame of ``camera`` taken after ``after`` (``time.monotonic()``), RGB.
+
+        Waiting for a frame newer than the moment the arm settled keeps motion out of the image; a stale or
+        lost stream raises the driver's typed error (after stopping the arms, as every device error does).
+        """
+        import time
+
+        cam = self.robot.cameras[camera]
+        assert self.rig.hardware is not None
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                frame = cam.read_latest(self.rig.hardware.max_age)
+            except Exception:
+                self.robot.stop()
+                raise
+            if after is None or frame.timestamp > after:
+                return np.asarray(frame.image, dtype=np.uint8)
+            if time.monotonic() > deadline:
+                from hw_drivers.errors import DeviceTimeoutError
+
+                self.robot.stop()
+                raise DeviceTimeoutError(camera, f"no new frame within {timeout} s")
+            time.sleep(0.01)
+
+
+@contextmanager
+def open_robot(rig_path: str | Path, *, what: str = "calibration") -> Iterator[RigRobot]:
+    """Connect a hardware rig through its drivers (the fake rig started first); arms stopped and closed after."""
+    from hw_drivers.factory import build_robot
+
+    rig = hardware_rig(rig_path, what)
+    assert rig.hardware is not None
+    fake = None
+    robot = None
+    try:
+        endpoints = None
+        if rig.hardware.fake is not None:
+            from hw_drivers.fakes.rig import FakeRig
+
+            fake = FakeRig(rig_path)
+            endpoints = fake.start()
+        robot = build_robot(rig, endpoints)
+        robot.connect()
+        yield RigRobot(rig, robot, fake)
+    finally:
+        try:
+            if robot is not None:
+                robot.disconnect()
+        finally:
+            if fake is not None:
+                fake.stop()

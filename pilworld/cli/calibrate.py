@@ -137,10 +137,15 @@ def register(sub: Any) -> None:
         "--camera-model", type=Path, help="intrinsics YAML at the image resolution (default: the folder's camera.yaml)"
     )
     h.add_argument("--board", type=Path, help="board config (default: the folder's, or configs/board/charuco_7x5_a4)")
-    h.add_argument("--save", type=Path, help="simulated rig: save the collected views to this folder")
-    h.add_argument("--poses", type=int, default=20, help="simulated rig: board poses per arm (default 20)")
-    h.add_argument("--seed", type=int, default=0, help="simulated rig: pose planner seed (default 0)")
+    h.add_argument(
+        "--save",
+        type=Path,
+        help="save the collected views to this folder (hardware rig: always saved, default --out's name + _views)",
+    )
+    h.add_argument("--poses", type=int, default=20, help="board poses per arm (default 20)")
+    h.add_argument("--seed", type=int, default=0, help="pose planner seed (default 0)")
     h.add_argument("--resolution", type=int, default=1024, help="simulated rig: image width (default 1024)")
+    _robot_arguments(h)
     h.add_argument("--json", action="store_true", help="print the report as one JSON object on the last line")
     h.set_defaults(handler=_handeye)
 
@@ -173,8 +178,8 @@ def register(sub: Any) -> None:
     source = c.add_mutually_exclusive_group()
     source.add_argument("--images", type=Path, help="recorded folder (NNN.png + poses.json)")
     source.add_argument("--sim", action="store_true", help="new held-out poses on the simulated rig (the default)")
-    c.add_argument("--arm", choices=("left", "right", "both"), default="both", help="simulated rig: arms to move")
-    c.add_argument("--poses", type=int, default=6, help="simulated rig: held-out poses per arm (default 6)")
+    c.add_argument("--arm", choices=("left", "right", "both"), default="both", help="arms to move (default both)")
+    c.add_argument("--poses", type=int, default=6, help="held-out poses per arm (default 6)")
     c.add_argument(
         "--seed",
         type=int,
@@ -189,7 +194,17 @@ def register(sub: Any) -> None:
         "view's corner RMS)",
     )
     c.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    c.add_argument("--save", type=Path, help="hardware rig: folder for the held-out views (default --out/views)")
+    _robot_arguments(c)
     c.set_defaults(handler=_check)
+
+
+def _robot_arguments(p: argparse.ArgumentParser) -> None:
+    """What a command that moves a hardware rig's arm takes (a rig with a ``hardware:`` section)."""
+    g = p.add_argument_group("hardware rig (a rig file with a hardware: section moves the real arms)")
+    g.add_argument("--yes", action="store_true", help="confirm the printed plan in advance (else asked at a terminal)")
+    g.add_argument("--resume", action="store_true", help="continue an interrupted collection in --save")
+    g.add_argument("--speed", type=float, default=0.5, help="top joint speed of the moves in rad/s (default 0.5)")
 
 
 def _board(args: argparse.Namespace) -> int:
@@ -261,7 +276,7 @@ def _intrinsics(args: argparse.Namespace) -> int:
     if not 0.0 <= args.held_out < 1.0:
         raise ValueError(f"--held-out: expected a fraction in [0, 1), got {args.held_out}")
     if args.live:
-        from pilworld.cli.calibrate_live import intrinsics_live
+        from pilworld.cli.calibrate_rig import intrinsics_live
 
         if args.rig is None:
             raise ValueError("--live: needs --rig, the hardware rig whose --camera to calibrate")
@@ -325,11 +340,27 @@ def _handeye(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     rig = RigConfig.load(args.rig)
     if args.camera != HEAD_VIEW:
+        if rig.hardware is not None and args.from_dir is None:
+            raise ValueError(
+                f"--camera {args.camera}: robot-driven wrist-camera calibration on a hardware rig is not supported "
+                "yet; record the folder (docs/calibration.md) and pass --from"
+            )
         return _handeye_wrist(args, rig, start)
     if args.write_rig is not None:
         raise ValueError("--write-rig: only for a wrist camera (--camera NAME); set head_camera.file by hand")
     args.arm = args.arm or "left"
     arms = arms_for(args.arm)
+    if rig.hardware is not None and args.from_dir is None:
+        # A hardware rig: the robot moves the board through the planned poses (calibrate_rig), then the
+        # recorded folder is solved as any --from folder is.
+        from pilworld.cli.calibrate_rig import collect_views_on_rig
+
+        args.board_file = args.board or DEFAULT_BOARD
+        folder = args.save or args.out.with_name(args.out.stem + "_views")
+        if args.poses < 3:
+            raise ValueError(f"--poses: a hand-eye calibration needs at least 3 board poses per arm, got {args.poses}")
+        collect_views_on_rig(args, "handeye", folder, arms, args.seed, for_calibration=True)
+        args.from_dir, args.save = folder, None
     board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
     recording, source = _recording(
         args,
@@ -548,10 +579,15 @@ def _arm_line(name: str, d: dict[str, Any]) -> str:
 def _check(args: argparse.Namespace) -> int:
     from pilworld.calibration.check import check_views
     from pilworld.calibration.recording import Recording
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, record_sim, sim_calibration_camera
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, record_sim, sim_calibration_camera
 
     rig = RigConfig.load(args.rig)
     if args.camera != HEAD_VIEW:
+        if rig.hardware is not None and args.images is None:
+            raise ValueError(
+                f"--camera {args.camera}: a robot-driven wrist-camera check on a hardware rig is not supported yet; "
+                "pass a recorded folder with --images"
+            )
         return _check_wrist(args, rig)
     if args.camera_model is not None:
         camera = CameraModel.from_yaml(args.camera_model)
@@ -567,7 +603,24 @@ def _check(args: argparse.Namespace) -> int:
     if report_path is not None:
         doc = json.loads(Path(report_path).read_text(encoding="utf-8"))
         mounts = {a: np.asarray(T, dtype=np.float64) for a, T in doc.get("T_tcp_board", {}).items()}
-    if args.images is not None:
+    if args.images is None and rig.hardware is not None:
+        # A hardware rig: the robot moves the board to held-out poses (planner seed --seed, not the
+        # calibration's), the views are recorded, then checked as a recorded folder is.
+        from pilworld.cli.calibrate_rig import collect_views_on_rig
+
+        if args.poses < 1:
+            raise ValueError(f"--poses: expected a number of board poses >= 1, got {args.poses}")
+        if args.out is None and args.save is None:
+            raise ValueError("--out (or --save): a check on a hardware rig records its held-out views there")
+        args.board_file = DEFAULT_BOARD
+        folder = args.save or args.out / "views"
+        recording = collect_views_on_rig(args, "check", folder, arms_for(args.arm), args.seed, for_calibration=False)
+        truth = recording.truth.T_cam_base if recording.truth is not None else None
+        if args.camera_model is None and rig.head_camera.file is None:
+            raise ValueError(
+                "--camera-model: needed on a hardware rig (the calibration to check, as `calibrate handeye` wrote it)"
+            )
+    elif args.images is not None:
         recording = Recording.load(args.images)
         truth = recording.truth.T_cam_base if recording.truth is not None else None
     else:

@@ -15,6 +15,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
@@ -22,6 +24,7 @@ from hw_drivers.errors import RobotError
 from pilworld.calibration.live_intrinsics import LiveTargets, ViewSelector, collect_live, load_views
 from pilworld.calibration.rig_devices import CollectionStoppedError, hardware_rig, is_fake, open_camera
 from pilworld.cli.terminal import StatusBlock, enter_pressed
+from pilworld.types import HEAD_VIEW
 
 
 def default_views_dir(out: Path) -> Path:
@@ -31,7 +34,6 @@ def default_views_dir(out: Path) -> Path:
 def rough_camera(rig_path: Path, name: str, width: int, height: int) -> CameraModel:
     """The rig's own model of camera ``name`` (designed or calibrated), at the frames' size: a first guess."""
     from pilworld.config.rig import RigConfig
-    from pilworld.types import HEAD_VIEW
 
     rig = RigConfig.load(rig_path)
     cam = rig.head_camera_model if name == HEAD_VIEW else rig.wrist_camera_model(name)
@@ -145,3 +147,132 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
     if args.json:
         print(json.dumps(report))
     return 0
+
+
+# ---------------------------------------------------------------------- hand-eye and check on a hardware rig
+
+
+def _confirm(args: argparse.Namespace, lines: list[str], what: str) -> None:
+    """Show the plan; move only with ``--yes`` or an operator's "y" at a terminal (else nothing moves)."""
+    import sys
+
+    from pilworld.paired.operator import OperatorUnavailableError
+
+    print("plan:")
+    for line in lines:
+        print(f"  {line}")
+    if args.yes:
+        return
+    if not sys.stdin.isatty():
+        raise OperatorUnavailableError(
+            f"{what}: the robot did not move: there is no terminal to confirm the plan above at; run the command "
+            "at the rig, or pass --yes to confirm it in advance"
+        )
+    answer = input(f"Move the robot through this plan ({what})? Keep clear of the arms. [y/N] ").strip().lower()
+    if answer not in ("y", "yes"):
+        from pilworld.paired.operator import OperatorUnavailableError
+
+        raise OperatorUnavailableError(f"{what}: not confirmed; the robot did not move")
+
+
+def _mount_board(args: argparse.Namespace, session: Any, arm: str, first: bool) -> None:
+    """The board to ``arm``'s gripper: the fake rig's simulated person does it; a real operator is asked."""
+    import sys
+
+    if session.fake is not None:
+        session.fake.board(arm, args.board_file)
+        print(f"fake rig: the simulator mounts the board on the {arm} gripper")
+        return
+    message = (
+        f"Clamp the board on the {arm} gripper with the reference bracket (docs/calibration.md), "
+        "printed face towards the head camera"
+    )
+    if sys.stdin.isatty():
+        from pilworld.calibration.rig_devices import person_prompt
+
+        person_prompt(message)
+    elif not first:
+        raise ValueError(f"--arm both: {message.lower()} — that needs an operator at a terminal between the arms")
+    else:
+        print(f"assuming the board is on the {arm} gripper (--yes without a terminal)")
+
+
+def collect_views_on_rig(
+    args: argparse.Namespace, purpose: str, folder: Path, arms: tuple[str, ...], seed: int, for_calibration: bool
+) -> Any:
+    """Plan (or resume), confirm and collect board views on a hardware rig into ``folder``; the Recording.
+
+    On the fake rig the folder also records the simulator's truth (the camera pose and the board mounts).
+    """
+    from calib.board import ChArUcoBoard
+    from hw_drivers.sim.board_mount import BoardMount
+    from pilworld.calibration.planner import PlannerSettings, plan_board_poses
+    from pilworld.calibration.recording import CAMERA_FILE, POSES_FILE, Recording
+    from pilworld.calibration.rig_collection import ArmPlan, CollectionPlan, ViewStore, collect_on_rig, plan_text
+    from pilworld.calibration.rig_devices import open_robot
+    from pilworld.calibration.rig_motion import MoveSettings
+
+    board = ChArUcoBoard.from_yaml(args.board_file)
+    settings = MoveSettings(speed=args.speed)
+    if args.resume:
+        plan = CollectionPlan.load(folder)
+        if plan.purpose != purpose:
+            raise ValueError(f"--resume: {folder} holds a {plan.purpose} collection, not a {purpose} one")
+    elif (folder / POSES_FILE).is_file():
+        raise ValueError(f"--save: {folder} already holds recorded views; pass --resume to continue, or another folder")
+    with open_robot(args.rig, what=f"calibrate {purpose}") as session:
+        rig = session.rig
+        image = session.grab(HEAD_VIEW)
+        h, w = image.shape[:2]
+        camera = rough_camera(args.rig, HEAD_VIEW, w, h)
+        if getattr(args, "camera_model", None) is not None:
+            given = CameraModel.from_yaml(args.camera_model)
+            if (given.width, given.height) != (w, h):
+                raise ValueError(
+                    f"--camera-model: {args.camera_model} is for {given.width}x{given.height} images, the head camera "
+                    f"sends {w}x{h} (calibrate the intrinsics at the camera's full resolution)"
+                )
+            camera = given.with_pose(camera.T_cam_base)  # its intrinsics, the rig's rough pose for planning
+        state = np.asarray(session.robot.state(), dtype=np.float64)
+        if not args.resume:
+            arm_plans = []
+            for arm in arms:
+                mount = BoardMount.beside_tcp(board, arm)
+                pose_plan = plan_board_poses(
+                    rig.kinematics,
+                    camera,
+                    board,
+                    mount.T_tcp_board,
+                    arm,
+                    state,
+                    PlannerSettings(poses=args.poses),
+                    seed,
+                    for_calibration=for_calibration,
+                )
+                arm_plans.append(ArmPlan.from_pose_plan(pose_plan, state))
+            plan = CollectionPlan(purpose, state.tolist(), arm_plans, settings={"seed": seed, "speed": args.speed})
+        _confirm(args, plan_text(plan, session, settings, state), f"calibrate {purpose}")
+        extra: dict[str, Any] = {"source": f"hardware rig {rig.name}", "purpose": purpose}
+        if session.fake is not None:
+            extra["sim_truth"] = {
+                "T_cam_base": rig.head_camera_model.T_cam_base.tolist(),
+                "T_tcp_board": {a: BoardMount.beside_tcp(board, a).T_tcp_board.tolist() for a in arms},
+            }
+        store = ViewStore(folder, rig.name, board, extra)
+        plan.save(folder)
+        if not (folder / CAMERA_FILE).is_file():
+            camera.with_pose(np.eye(4)).to_yaml(folder / CAMERA_FILE)  # the intrinsics the views are solved with
+        mounted: list[str] = []
+
+        def before_arm(arm: str) -> None:
+            _mount_board(args, session, arm, first=not mounted)
+            mounted.append(arm)
+
+        report = collect_on_rig(session, plan, store, settings, before_arm=before_arm)
+        if report.skipped:
+            print(
+                f"{len(report.skipped)} pose(s) skipped: "
+                + "; ".join(f"{n}: {why}" for n, why in report.skipped.items())
+            )
+        print(f"{store.count} views in {folder} ({report.recorded} new, {report.seconds:.0f} s)")
+    return Recording.load(folder)
