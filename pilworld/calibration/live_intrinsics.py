@@ -9,11 +9,13 @@ repeat what is known already — the board held still, or shown again where it w
   within ``duplicate_px`` on average: a board held still), and
 * **adds coverage** (puts a corner in a cell of the coverage grid that had none — distortion is only known
   where corners were seen), or **adds tilt** (the board's face is tilted at least ``tilt_deg`` off the line
-  of sight towards a side no kept view has covered yet: tilted views are what pin the focal length down).
+  of sight towards a side no kept view has covered yet: tilted views are what pin the focal length down),
+  or, while a target is still missing, is simply a distinct view (more corners, less noise).
 
 After every kept view (from the fourth on) the camera is re-solved with ``cv2.calibrateCamera`` for the
-running RMS, and tilts are measured with the current estimate. :class:`LiveTargets` says when to stop:
-coverage, view count, tilted views and RMS all reached (or ``max_views``, a time limit, or Enter). The kept
+running RMS and the principal point's σ, and tilts are measured with the current estimate.
+:class:`LiveTargets` says when to stop: coverage, view count, tilted views, RMS and principal-point σ all
+reached (or ``max_views``, a time limit, or Enter). The kept
 frames are saved as PNG as they are kept (``NNN.png``), so an interrupted collection loses nothing and
 ``--resume`` continues from them; the final solve is :func:`calib.intrinsics.calibrate_intrinsics`, as for a
 folder of images.
@@ -51,8 +53,11 @@ class LiveTargets:
 
     coverage: float = 0.8  #: fraction of the coverage grid's cells with a corner
     views: int = 20  #: at least this many kept views
-    max_views: int = 40  #: stop when this many are kept, whatever else holds
+    max_views: int = 60  #: stop when this many are kept, whatever else holds
     rms_px: float = 0.5  #: running reprojection RMS at most this
+    #: the principal point's σ (OpenCV's, from the running solve) at most this: it is what moves ``T_cam_base``
+    #: most (a 3 px error at 1024² costs ~3 mm, docs/calibration.md) and what tilted views near the edges pin down
+    pp_sigma_px: float = 0.6
     tilted_views: int = 4  #: kept views tilted at least ``tilt_deg`` …
     tilt_deg: float = 20.0  #: … off the line of sight (one per side of TILT_SECTORS at most counts)
     max_seconds: float = 900.0  #: give up waiting for new views after this long
@@ -66,6 +71,8 @@ class LiveTargets:
             raise ValueError(f"max views: expected at least the views target {self.views}, got {self.max_views}")
         if not self.rms_px > 0.0:
             raise ValueError(f"RMS target: expected pixels > 0, got {self.rms_px}")
+        if not self.pp_sigma_px > 0.0:
+            raise ValueError(f"principal-point σ target: expected pixels > 0, got {self.pp_sigma_px}")
         if self.tilted_views < 0 or not 0.0 <= self.tilt_deg < 80.0:
             raise ValueError(f"tilt target: expected >= 0 views at 0-80°, got {self.tilted_views} at {self.tilt_deg}°")
         if not self.max_seconds > 0.0:
@@ -95,6 +102,7 @@ class ViewSelector:
     tilts: list[float] = field(default_factory=list)
     sectors: set[int] = field(default_factory=set)  #: tilt directions covered by views tilted >= tilt_deg
     rms_px: float | None = None
+    pp_sigma_px: float | None = None  #: the larger of σ(cx) and σ(cy) of the running solve
     K: FloatArray | None = None
     dist: FloatArray | None = None
 
@@ -126,6 +134,9 @@ class ViewSelector:
         if self.rms_px is None or self.rms_px > t.rms_px:
             rms = "n/a" if self.rms_px is None else f"{self.rms_px:.2f}"
             out.append(f"RMS {rms}/{t.rms_px} px")
+        if self.pp_sigma_px is None or self.pp_sigma_px > t.pp_sigma_px:
+            sigma = "n/a" if self.pp_sigma_px is None else f"{self.pp_sigma_px:.2f}"
+            out.append(f"principal point σ {sigma}/{t.pp_sigma_px} px (tilted views near the edges)")
         return out
 
     def _cells(self, corners: FloatArray) -> IntArray:
@@ -178,8 +189,8 @@ class ViewSelector:
             reason = f"adds coverage (+{len(new)} cell{'s' if len(new) > 1 else ''})"
         elif tilt is not None and tilt[0] >= self.targets.tilt_deg and tilt[1] not in self.sectors:
             reason = f"adds tilt ({tilt[0]:.0f}° towards a new side)"
-        elif len(self.views) < self.targets.views:
-            # Until the count is reached, any distinct view helps the solve (more corners, less noise).
+        elif self.missing():
+            # Until every target holds, any distinct view helps the solve (more corners, less noise).
             reason = "a distinct view"
         if not reason:
             return Offer(False, "adds nothing new", tilt_deg)
@@ -198,16 +209,18 @@ class ViewSelector:
     def _solve(self) -> None:
         pts = [v.object_image_points() for v in self.views]
         try:
-            rms, K, dist, _, _ = cv2.calibrateCamera(
+            rms, K, dist, _, _, std, _, _ = cv2.calibrateCameraExtended(
                 [o.astype(np.float32).reshape(-1, 1, 3) for o, _ in pts],
                 [i.astype(np.float32).reshape(-1, 1, 2) for _, i in pts],
                 self.image_size,
-                None,
-                None,
+                np.eye(3),  # ignored: without CALIB_USE_INTRINSIC_GUESS OpenCV initialises K itself
+                np.zeros(5),
             )
         except cv2.error:  # degenerate so far (e.g. all views parallel): keep collecting
             return
         self.rms_px, self.K, self.dist = float(rms), np.asarray(K, np.float64), np.asarray(dist, np.float64)
+        sigma = np.asarray(std, np.float64).reshape(-1)
+        self.pp_sigma_px = float(max(sigma[2], sigma[3])) if np.all(np.isfinite(sigma[2:4])) else None
         # Re-measure the tilts with the better camera.
         self.sectors.clear()
         for i, v in enumerate(self.views):
@@ -225,10 +238,11 @@ def coverage_lines(selector: ViewSelector) -> list[str]:
 def status_lines(selector: ViewSelector, elapsed: float, last: str) -> list[str]:
     """The running display: counts, RMS, what is missing, the coverage map and the last decision."""
     rms = "n/a" if selector.rms_px is None else f"{selector.rms_px:.3f} px"
+    sigma = "n/a" if selector.pp_sigma_px is None else f"{selector.pp_sigma_px:.2f} px"
     missing = selector.missing()
     head = (
         f"views {len(selector.views)}  coverage {selector.coverage:.0%}  tilted {selector.tilted}  RMS {rms}  "
-        f"{elapsed:.0f} s"
+        f"principal point σ {sigma}  {elapsed:.0f} s"
     )
     todo = "targets reached" if not missing else "still needed: " + ", ".join(missing)
     return [head, todo, *("  " + row for row in coverage_lines(selector)), f"last frame: {last}"]
@@ -285,7 +299,7 @@ def collect_live(
     detector: BoardDetector,
     save: Path,
     *,
-    stop_requested: Callable[[], bool] = lambda: False,
+    stop_requested: Callable[[], str | None] = lambda: None,
     show: Callable[[list[str]], None] | None = None,
     preview: Path | None = None,
     clock: Callable[[], float] = time.monotonic,
@@ -293,10 +307,9 @@ def collect_live(
     """Offer every new frame of ``grab`` (RGB or gray image, frame index) to ``selector`` until it is done.
 
     Each kept frame is written to ``save/NNN.png`` at once (after the views already there, which a resumed
-    collection has offered to ``selector`` first: :func:`load_views`). Stops
-    when the targets are reached, ``max_views`` are kept, ``stop_requested()`` (the operator pressed Enter)
-    or ``max_seconds`` pass. Errors from ``grab`` (a stalled or lost camera) propagate after the views kept
-    so far are saved — they always are, one by one.
+    collection has offered to ``selector`` first: :func:`load_views`). Stops when the targets are reached,
+    ``max_views`` are kept, ``stop_requested()`` gives a reason (the operator pressed Enter) or ``max_seconds``
+    pass. Errors from ``grab`` (a stalled or lost camera) propagate; the views kept so far are on disk already.
     """
     save.mkdir(parents=True, exist_ok=True)
     t0 = clock()
@@ -313,8 +326,9 @@ def collect_live(
         if len(selector.views) >= selector.targets.max_views:
             stop = f"{selector.targets.max_views} views kept (the maximum)"
             break
-        if stop_requested():
-            stop = "stopped by the operator"
+        requested = stop_requested()
+        if requested:
+            stop = requested
             break
         if elapsed > selector.targets.max_seconds:
             stop = f"time limit ({selector.targets.max_seconds:.0f} s)"

@@ -85,23 +85,29 @@ def open_camera(rig_path: str | Path, name: str, *, what: str = "--live") -> Ite
     if name not in rig.cameras:
         raise ValueError(f"--camera: rig {rig.name!r} has no camera {name!r} (its cameras: {', '.join(rig.cameras)})")
     assert rig.hardware is not None
-    fake = None
-    camera = None
-    try:
-        endpoints = None
-        if rig.hardware.fake is not None:
-            from hw_drivers.fakes.rig import FakeRig
-
-            fake = FakeRig(rig_path)
-            endpoints = fake.start()
+    with _fake_rig(rig, rig_path) as (fake, endpoints):
         camera = build_cameras(rig, endpoints)[name]
         camera.connect()
-        yield RigCamera(name, camera, rig.hardware.max_age, fake)
-    finally:
-        if camera is not None:
+        try:
+            yield RigCamera(name, camera, rig.hardware.max_age, fake)
+        finally:
             camera.disconnect()
-        if fake is not None:
-            fake.stop()
+
+
+@contextmanager
+def _fake_rig(rig: RigConfig, rig_path: str | Path) -> Iterator[tuple[Any, Any]]:
+    """(the fake rig process, its endpoints) for a rig with ``hardware.fake``, else (None, None); stopped after."""
+    if rig.hardware is None or rig.hardware.fake is None:
+        yield None, None
+        return
+    from hw_drivers.fakes.rig import FakeRig
+
+    fake = FakeRig(rig_path)
+    endpoints = fake.start()
+    try:
+        yield fake, endpoints
+    finally:
+        fake.stop()
 
 
 def person_prompt(message: str, *, ask: Callable[[str], str] = input) -> None:
@@ -152,23 +158,10 @@ def open_robot(rig_path: str | Path, *, what: str = "calibration") -> Iterator[R
     from hw_drivers.factory import build_robot
 
     rig = hardware_rig(rig_path, what)
-    assert rig.hardware is not None
-    fake = None
-    robot = None
-    try:
-        endpoints = None
-        if rig.hardware.fake is not None:
-            from hw_drivers.fakes.rig import FakeRig
-
-            fake = FakeRig(rig_path)
-            endpoints = fake.start()
+    with _fake_rig(rig, rig_path) as (fake, endpoints):
         robot = build_robot(rig, endpoints)
         robot.connect()
-        yield RigRobot(rig, robot, fake)
-    finally:
         try:
-            if robot is not None:
-                robot.disconnect()
+            yield RigRobot(rig, robot, fake)
         finally:
-            if fake is not None:
-                fake.stop()
+            robot.disconnect()

@@ -87,8 +87,9 @@ def register(sub: Any) -> None:
     live.add_argument("--preview", type=Path, help="PNG refreshed with the latest frame, its corners and the coverage")
     live.add_argument("--coverage", type=float, default=0.8, help="target image coverage (default 0.8)")
     live.add_argument("--views", type=int, default=20, help="target number of views (default 20)")
-    live.add_argument("--max-views", type=int, default=40, help="stop at this many views (default 40)")
+    live.add_argument("--max-views", type=int, default=60, help="stop at this many views (default 60)")
     live.add_argument("--rms", type=float, default=0.5, help="target running RMS in px (default 0.5)")
+    live.add_argument("--pp-sigma", type=float, default=0.6, help="target σ of the principal point in px (default 0.6)")
     live.add_argument("--max-seconds", type=float, default=900.0, help="time limit in s (default 900)")
     live.add_argument("--hold", type=float, default=0.6, help="fake rig: seconds the simulated person holds each pose")
     i.add_argument(

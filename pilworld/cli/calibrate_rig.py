@@ -21,7 +21,7 @@ from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
 from hw_drivers.errors import RobotError
-from pilworld.calibration.live_intrinsics import LiveTargets, ViewSelector, collect_live, load_views
+from pilworld.calibration.live_intrinsics import LiveTargets, ViewSelector, collect_live, load_views, status_lines
 from pilworld.calibration.rig_devices import CollectionStoppedError, hardware_rig, is_fake, open_camera
 from pilworld.cli.terminal import StatusBlock, enter_pressed
 from pilworld.types import HEAD_VIEW
@@ -66,6 +66,7 @@ def targets_from(args: argparse.Namespace) -> LiveTargets:
         views=args.views,
         max_views=args.max_views,
         rms_px=args.rms,
+        pp_sigma_px=args.pp_sigma,
         max_seconds=args.max_seconds,
     )
 
@@ -104,13 +105,25 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
                 "~50° towards every side; hold it still for a moment at each pose. Press Enter to stop early."
             )
         print(f"targets: {', '.join(selector.missing()) or 'reached'}")
+        asked = {"at": 0.0}
+
+        def stop_requested() -> str | None:
+            if enter_pressed():
+                return "stopped by the operator (Enter)"
+            # On the fake rig the simulated person stops after its last pose, as a real one presses Enter.
+            if cam.fake is not None and time.monotonic() - asked["at"] > 0.5:
+                asked["at"] = time.monotonic()
+                if not cam.fake.presented()["running"]:
+                    return "the simulated person has shown every pose"
+            return None
+
         try:
             result = collect_live(
                 cam.grab,
                 selector,
                 detector,
                 save,
-                stop_requested=enter_pressed,
+                stop_requested=stop_requested,
                 show=block.show,
                 preview=args.preview,
             )
@@ -120,6 +133,8 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
             raise CollectionStoppedError(
                 f"collection stopped: {what}; {kept} view(s) kept in {save}; rerun with --resume to continue"
             ) from None
+    if not block.tty:  # a log has had one line per kept view; the final coverage map once
+        block.finish(status_lines(selector, result.seconds, f"{len(result.views)} views kept"))
     print(f"{result.stop}: {len(result.views)} views kept of {result.frames_seen} frames in {result.seconds:.0f} s")
     if len(result.views) < 4:
         raise ValueError(f"--live: only {len(result.views)} views kept ({result.stop}); a calibration needs >= 4")
@@ -142,6 +157,7 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
         "seconds": round(time.monotonic() - t0, 1),
         "coverage_at_stop": selector.coverage,
         "running_rms_px": selector.rms_px,
+        "principal_point_sigma_px": selector.pp_sigma_px,
         "tilts_deg": [round(t, 1) for t in selector.tilts],
     }
     if args.json:

@@ -1,7 +1,7 @@
 """A live status block on the terminal, and Enter as a stop key, for commands that wait on a person.
 
-On a terminal the block is redrawn in place (ANSI: cursor up, clear to the end); in a log (no TTY) only
-changed lines are printed, so a CI log shows one line per event rather than a redraw every second.
+On a terminal the block is redrawn in place (ANSI: cursor up, clear to the end); in a log (no TTY) one line
+per kept item is printed, so a CI log shows one line per event rather than a redraw every second.
 """
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ from typing import TextIO
 class StatusBlock:
     """Redraws a few lines in place on a TTY; prints what changed otherwise."""
 
-    def __init__(self, stream: TextIO | None = None) -> None:
+    def __init__(self, stream: TextIO | None = None, keep_prefix: str = "last frame: kept") -> None:
         self.stream = stream or sys.stdout
+        self.keep_prefix = keep_prefix
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self._drawn = 0
         self._last: list[str] = []
@@ -27,10 +28,10 @@ class StatusBlock:
             self.stream.write("\n".join(lines) + "\n")
             self._drawn = len(lines)
         else:
-            # The first and last lines carry the counts and the latest decision; the rest (a map) only at the end.
-            for line in (lines[0], lines[-1]) if len(lines) > 1 else lines:
-                if line not in self._last:
-                    self.stream.write(line + "\n")
+            # In a log: the counts and the latest decision when something was kept (``keep_prefix``), not every
+            # skipped frame; the whole block (the map) only at the end.
+            if lines[-1].startswith(self.keep_prefix) and lines != self._last:
+                self.stream.write(f"{lines[0]} | {lines[-1]}\n")
             self._last = list(lines)
         self.stream.flush()
 

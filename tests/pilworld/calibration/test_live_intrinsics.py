@@ -122,8 +122,8 @@ def test_collect_live_stops_on_request_and_on_a_camera_fault(
         collect_live(grab, sel, BoardDetector(BOARD), tmp_path / "v")
     assert len(list((tmp_path / "v").glob("*.png"))) == 3  # every view kept before the fault is on disk
     sel2 = selector()
-    result = collect_live(grab, sel2, BoardDetector(BOARD), tmp_path / "w", stop_requested=lambda: True)
-    assert result.stop == "stopped by the operator" and result.views == ()
+    result = collect_live(grab, sel2, BoardDetector(BOARD), tmp_path / "w", stop_requested=lambda: "Enter")
+    assert result.stop == "Enter" and result.views == ()
 
 
 def test_preview_is_written_atomically(views: list[tuple[np.ndarray, Detection]], tmp_path: Path) -> None:

@@ -82,18 +82,20 @@ def test_handeye_and_check_on_the_fake_rig(tmp_path: Path, capsys: pytest.Captur
     report = _last_json(text)
     truth = report["truth"]
     assert truth["translation_err_mm"] < 2.0 and truth["rotation_err_deg"] < 0.3, truth
-    assert truth["gripper_reproj_err_px"] < 1.0 and report["poses"] == 20
+    assert truth["gripper_reproj_err_px"] < 1.0 and report["poses"] >= 18  # a view may fail the solver's checks
     assert "fake rig: the simulator mounts the board on the right gripper" in text
     assert "the left arm returns to the start pose" in text
     views = tmp_path / "head_camera_views"
-    assert len(list(views.glob("*.png"))) == 20 and (views / "plan.json").is_file()
+    outcome = json.loads((views / "plan.json").read_text())["outcome"]
+    recorded = [n for n, o in outcome.items() if o.startswith("recorded")]
+    assert len(outcome) == 20 and len(recorded) == len(list(views.glob("*.png"))) >= 18
     check = ["calibrate", "check", "--rig", str(FAKE), "--camera-model", str(out), "--out", str(tmp_path / "check")]
     assert main([*check, "--yes", "--json", "--max-px", "1.0"]) == 0
     result = _last_json(capsys.readouterr().out)
     for arm in ("left", "right"):
         entry = result["arms"][arm]
         assert entry["gripper_err_max_px"] < 1.0 and entry["board_reproj_rms_px_at_rig_size"] < 1.0, entry
-    assert len(list((tmp_path / "check").glob("check_*.png"))) == 12
+    assert len(list((tmp_path / "check").glob("check_*.png"))) == result["views"] >= 10
 
 
 @pytest.mark.slow
