@@ -196,6 +196,10 @@ def collect_on_rig(
     t0 = time.monotonic()
     hold = np.asarray(plan.hold, dtype=np.float64)
     check = SafetyFilter(spec)  # refusals before moving: the target alone, nothing is stopped
+    # A view on disk counts as recorded even if the stop came between writing it and updating plan.json.
+    for entry in store.doc["views"]:
+        if entry.get("pose"):
+            plan.outcome.setdefault(str(entry["pose"]), f"recorded: {entry['image']}")
     try:
         for arm in plan.arms:
             names = plan.pose_names(arm)

@@ -94,6 +94,11 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
                     raise ValueError(f"--resume: {save} holds {det.image_size} frames, the camera sends {w}x{h}")
                 selector._keep(det, selector._cells(det.corners), selector._tilt(det))
             print(f"resumed: {len(earlier)} views from {save}")
+        if cam.fake is not None and args.camera != HEAD_VIEW:
+            raise ValueError(
+                f"--camera {args.camera}: on the fake rig the simulated person holds the board up to the head camera "
+                f"({HEAD_VIEW}) only; a wrist camera's intrinsics are calibrated live on a real rig"
+            )
         if cam.fake is not None:
             # The simulator stands in for the person: it holds the board up, pose after pose.
             cam.fake.board("hand", args.board)

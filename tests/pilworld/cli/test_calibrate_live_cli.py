@@ -42,6 +42,11 @@ def test_live_needs_a_hardware_rig(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "no 'hardware:' section" in capsys.readouterr().err
     assert main(["calibrate", "intrinsics", "--live", "--rig", str(FAKE), "--camera", "cam_x", "--out", str(out)]) == 2
     assert "no camera 'cam_x'" in capsys.readouterr().err
+    assert (
+        main(["calibrate", "intrinsics", "--live", "--rig", str(FAKE), "--camera", "cam_left_wrist", "--out", str(out)])
+        == 2
+    )
+    assert "holds the board up to the head camera (cam_high) only" in capsys.readouterr().err
     with pytest.raises(SystemExit):  # --images and --live are exclusive
         main(["calibrate", "intrinsics", "--live", "--images", str(tmp_path), "--out", str(out)])
 

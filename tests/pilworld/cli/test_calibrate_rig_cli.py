@@ -148,3 +148,32 @@ def test_camera_stall_then_resume(
     assert main([*argv, "--resume", "--json"]) == 0
     report = _last_json(capsys.readouterr().out)
     assert report["poses"] == 6 and report["truth"]["translation_err_mm"] < 2.0
+
+
+@pytest.mark.slow
+def test_ctrl_c_keeps_the_views_and_resume_does_not_repeat_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C right after a view is written (before plan.json knows): the arms stop, and resume neither loses
+    nor repeats that view."""
+    from pilworld.calibration import rig_collection
+
+    add = rig_collection.ViewStore.add
+
+    def add_then_interrupt(self: rig_collection.ViewStore, view: Any, pose: str) -> str:
+        name = add(self, view, pose)
+        if self.count == 2:
+            raise KeyboardInterrupt
+        return name
+
+    monkeypatch.setattr(rig_collection.ViewStore, "add", add_then_interrupt)
+    out = tmp_path / "head_camera.yaml"
+    argv = ["calibrate", "handeye", "--rig", str(FAKE), "--arm", "left", "--poses", POSES, "--out", str(out), "--yes"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "collection stopped: interrupted (Ctrl-C); the arms are stopped; 2 view(s)" in err[0]
+    monkeypatch.setattr(rig_collection.ViewStore, "add", add)
+    assert main([*argv, "--resume", "--json"]) == 0
+    report = _last_json(capsys.readouterr().out)
+    poses = [v["pose"] for v in json.loads((tmp_path / "head_camera_views" / "poses.json").read_text())["views"]]
+    assert poses == [f"left_{i:03d}" for i in range(6)] and report["poses"] == 6
