@@ -31,7 +31,15 @@ import numpy.typing as npt
 from calib.camera_model import CameraModel
 from calib.detect import Detection
 
-__all__ = ["INTERVAL_Z", "IntrinsicsOptions", "IntrinsicsResult", "ViewReport", "calibrate_intrinsics"]
+__all__ = [
+    "INTERVAL_Z",
+    "CameraFit",
+    "IntrinsicsOptions",
+    "IntrinsicsResult",
+    "ViewReport",
+    "calibrate_intrinsics",
+    "fit_camera",
+]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -133,7 +141,7 @@ class IntrinsicsResult:
 
 
 @dataclass(frozen=True)
-class _Fit:
+class CameraFit:
     K: FloatArray
     dist: FloatArray
     rms: float
@@ -149,7 +157,10 @@ def _flags(n_dist: int) -> int:
     return 0
 
 
-def _fit(obj: Sequence[FloatArray], img: Sequence[FloatArray], size: tuple[int, int], n_dist: int) -> _Fit:
+def fit_camera(
+    obj: Sequence[FloatArray], img: Sequence[FloatArray], size: tuple[int, int], n_dist: int = 5
+) -> CameraFit:
+    """One ``cv2.calibrateCameraExtended`` over the views' object/image points (``cv2.error`` when degenerate)."""
     rms, K, dist, _, _, std, _, per_view = cv2.calibrateCameraExtended(
         [o.astype(np.float32).reshape(-1, 1, 3) for o in obj],
         [i.astype(np.float32).reshape(-1, 1, 2) for i in img],
@@ -158,7 +169,7 @@ def _fit(obj: Sequence[FloatArray], img: Sequence[FloatArray], size: tuple[int, 
         np.zeros((1, 8 if n_dist == 8 else 5)),
         flags=_flags(n_dist),
     )
-    return _Fit(
+    return CameraFit(
         K=np.asarray(K, np.float64),
         dist=np.asarray(dist, np.float64).reshape(-1)[:n_dist],
         rms=float(rms),
@@ -232,8 +243,8 @@ def calibrate_intrinsics(
             "the whole board visible"
         )
 
-    def fit(ids: Sequence[int]) -> _Fit:
-        return _fit([points[i][0] for i in ids], [points[i][1] for i in ids], size, opt.dist_coeffs)
+    def fit(ids: Sequence[int]) -> CameraFit:
+        return fit_camera([points[i][0] for i in ids], [points[i][1] for i in ids], size, opt.dist_coeffs)
 
     used = list(usable)
     result = fit(used)
@@ -292,7 +303,7 @@ def _held_out(
     used: list[int],
     points: dict[int, tuple[FloatArray, FloatArray]],
     opt: IntrinsicsOptions,
-    fit: Callable[[Sequence[int]], _Fit],
+    fit: Callable[[Sequence[int]], CameraFit],
 ) -> tuple[float | None, list[int]]:
     n_hold = round(opt.held_out_fraction * len(used))
     if opt.held_out_fraction > 0.0:

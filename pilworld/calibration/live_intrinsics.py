@@ -35,6 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.detect import BoardDetector, Detection
+from calib.intrinsics import fit_camera
 
 __all__ = ["LiveTargets", "Offer", "ViewSelector", "collect_live", "coverage_lines", "load_views"]
 
@@ -197,30 +198,32 @@ class ViewSelector:
         self._keep(det, cells, tilt)
         return Offer(True, reason, tilt_deg)
 
-    def _keep(self, det: Detection, cells: IntArray, tilt: tuple[float, int] | None) -> None:
+    def restore(self, detections: list[Detection]) -> None:
+        """Keep the views an interrupted collection saved (``--resume``) without judging them again; one solve."""
+        for det in detections:
+            if det.image_size != tuple(self.image_size):
+                raise ValueError(f"saved view {det.name}: {det.image_size} frames, the camera sends {self.image_size}")
+            self._keep(det, self._cells(det.corners), self._tilt(det), solve=False)
+        if len(self.views) >= 4:
+            self._solve()
+
+    def _keep(self, det: Detection, cells: IntArray, tilt: tuple[float, int] | None, *, solve: bool = True) -> None:
         self.views.append(det)
         np.add.at(self.counts, (cells[:, 0], cells[:, 1]), 1)
         self.tilts.append(0.0 if tilt is None else tilt[0])
         if tilt is not None and tilt[0] >= self.targets.tilt_deg:
             self.sectors.add(tilt[1])
-        if len(self.views) >= 4:
+        if solve and len(self.views) >= 4:
             self._solve()
 
     def _solve(self) -> None:
         pts = [v.object_image_points() for v in self.views]
         try:
-            rms, K, dist, _, _, std, _, _ = cv2.calibrateCameraExtended(
-                [o.astype(np.float32).reshape(-1, 1, 3) for o, _ in pts],
-                [i.astype(np.float32).reshape(-1, 1, 2) for _, i in pts],
-                self.image_size,
-                np.eye(3),  # ignored: without CALIB_USE_INTRINSIC_GUESS OpenCV initialises K itself
-                np.zeros(5),
-            )
+            fit = fit_camera([o for o, _ in pts], [i for _, i in pts], self.image_size)
         except cv2.error:  # degenerate so far (e.g. all views parallel): keep collecting
             return
-        self.rms_px, self.K, self.dist = float(rms), np.asarray(K, np.float64), np.asarray(dist, np.float64)
-        sigma = np.asarray(std, np.float64).reshape(-1)
-        self.pp_sigma_px = float(max(sigma[2], sigma[3])) if np.all(np.isfinite(sigma[2:4])) else None
+        self.rms_px, self.K, self.dist = fit.rms, fit.K, fit.dist
+        self.pp_sigma_px = float(max(fit.std[2], fit.std[3])) if np.all(np.isfinite(fit.std[2:4])) else None
         # Re-measure the tilts with the better camera.
         self.sectors.clear()
         for i, v in enumerate(self.views):

@@ -79,6 +79,11 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
     save: Path = args.save or default_views_dir(args.out)
     if save.exists() and any(save.iterdir()) and not args.resume:
         raise ValueError(f"--save: {save} already holds views; pass --resume to continue from them, or another --save")
+    if is_fake(rig) and args.camera in rig.wrist_cameras:  # refused before the fake rig process starts
+        raise ValueError(
+            f"--camera {args.camera}: on the fake rig the simulated person holds the board up to the head camera "
+            f"({HEAD_VIEW}) only; a wrist camera's intrinsics are calibrated live on a real rig"
+        )
     detector = BoardDetector(board)
     block = StatusBlock()
     t0 = time.monotonic()
@@ -89,16 +94,11 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
         selector = ViewSelector((w, h), rough_camera(args.rig, args.camera, w, h).K, targets)
         if args.resume and save.is_dir():
             earlier = load_views(save, detector)
-            for _, _, det in earlier:
-                if det.image_size != (w, h):
-                    raise ValueError(f"--resume: {save} holds {det.image_size} frames, the camera sends {w}x{h}")
-                selector._keep(det, selector._cells(det.corners), selector._tilt(det))
+            try:
+                selector.restore([det for _, _, det in earlier])
+            except ValueError as exc:
+                raise ValueError(f"--resume: {save}: {exc}") from None
             print(f"resumed: {len(earlier)} views from {save}")
-        if cam.fake is not None and args.camera != HEAD_VIEW:
-            raise ValueError(
-                f"--camera {args.camera}: on the fake rig the simulated person holds the board up to the head camera "
-                f"({HEAD_VIEW}) only; a wrist camera's intrinsics are calibrated live on a real rig"
-            )
         if cam.fake is not None:
             # The simulator stands in for the person: it holds the board up, pose after pose.
             cam.fake.board("hand", args.board)
@@ -110,14 +110,15 @@ def intrinsics_live(args: argparse.Namespace, solve: Any) -> int:
                 "~50° towards every side; hold it still for a moment at each pose. Press Enter to stop early."
             )
         print(f"targets: {', '.join(selector.missing()) or 'reached'}")
-        asked = {"at": 0.0}
+        asked_at = 0.0
 
         def stop_requested() -> str | None:
+            nonlocal asked_at
             if enter_pressed():
                 return "stopped by the operator (Enter)"
             # On the fake rig the simulated person stops after its last pose, as a real one presses Enter.
-            if cam.fake is not None and time.monotonic() - asked["at"] > 0.5:
-                asked["at"] = time.monotonic()
+            if cam.fake is not None and time.monotonic() - asked_at > 0.5:
+                asked_at = time.monotonic()
                 if not cam.fake.presented()["running"]:
                     return "the simulated person has shown every pose"
             return None

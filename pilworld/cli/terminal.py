@@ -12,7 +12,7 @@ from typing import TextIO
 
 
 class StatusBlock:
-    """Redraws a few lines in place on a TTY; prints what changed otherwise."""
+    """Redraws a few lines in place on a TTY; otherwise prints one line per kept item (``keep_prefix``)."""
 
     def __init__(self, stream: TextIO | None = None, keep_prefix: str = "last frame: kept") -> None:
         self.stream = stream or sys.stdout
