@@ -31,8 +31,8 @@ single-step image error is kept as a secondary column (it ranked v1's presets, a
   model call alone within the same rounds. The chart, the front and ``realtime_factor`` (robot time of one
   chunk, K·Δ / control rate = 1.5 s, over the round) use the whole round.
 * ``params`` — ``sum(p.numel() for p in model.parameters())``: v1's VAE and denoiser, v2's U-Net and painter.
-* single-step accuracy on held-out clips (seeds 1,000,000+; :mod:`pilworld.bench.world_model`), scored at the
-  rig's resolution: head-view pooled PSNR and SSIM (secondary). v2 is scored through its ``predict_batch``
+* single-step accuracy on :data:`FULL_CLIPS` held-out clips (seeds 1,000,000+; :mod:`pilworld.bench.world_model`),
+  scored at the rig's resolution: head-view pooled PSNR and SSIM (secondary). v2 is scored through its ``predict_batch``
   with the clips' joint states, which gives it no history frames (its memory layer is empty): a lower bound.
 * closed loop (:func:`~pilworld.bench.variants.evaluate_variants`, real branches run once and shared by every
   point): |ΔSR|, HFR, SR_imag, SR_real and their 95 % intervals on 3 tasks × 2 checkpoints ×
@@ -85,7 +85,9 @@ KNEE_ABS_DSR_FLOOR = 0.05
 KNEE_HFR = 0.05
 KNEE_DB = 0.25  # the single-step knee (for contrast): head-view PSNR within this of the best
 QUICK_CLIPS = 24
-FULL_CLIPS = 96
+# Single-step PSNR is the secondary column; 48 clips (each 8 frames x 3 views) halve the stage that was the
+# set's largest after the paired bench (17 points x 96 clips: 1,392 s of 1,886 on a busy machine, 2026-12-05).
+FULL_CLIPS = 48
 # Timed rounds per point (after warm-up rounds). Quick mode takes the median of 3: the untrained `base` preset
 # costs ~0.1 s per Euler step on an idle CPU, so 10 calls at 16 steps would eat a large part of 5 minutes.
 QUICK_REPEATS = 3
