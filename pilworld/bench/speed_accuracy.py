@@ -32,8 +32,9 @@ single-step image error is kept as a secondary column (it ranked v1's presets, a
   chunk, K·Δ / control rate = 1.5 s, over the round) use the whole round.
 * ``params`` — ``sum(p.numel() for p in model.parameters())``: v1's VAE and denoiser, v2's U-Net and painter.
 * single-step accuracy on :data:`FULL_CLIPS` held-out clips (seeds 1,000,000+; :mod:`pilworld.bench.world_model`),
-  scored at the rig's resolution: head-view pooled PSNR and SSIM (secondary). v2 is scored through its ``predict_batch``
-  with the clips' joint states, which gives it no history frames (its memory layer is empty): a lower bound.
+  scored at the rig's resolution: head-view pooled PSNR and SSIM (secondary). v2 is scored through its
+  ``predict_batch`` with the clips' joint states, which gives it no history frames (its memory layer is empty):
+  a lower bound.
 * closed loop (:func:`~pilworld.bench.variants.evaluate_variants`, real branches run once and shared by every
   point): |ΔSR|, HFR, SR_imag, SR_real and their 95 % intervals on 3 tasks × 2 checkpoints ×
   :data:`CLOSED_LOOP_SUBTASKS` subtasks = 18 pairs, for every trained v2 point and v1 at 1 and 16 steps
