@@ -16,7 +16,7 @@ def robots() -> Iterator[Callable[[str], object]]:
 
     Tests reset the robot they use before relying on its state.
     """
-    from hw_drivers.sim.robot import SimRobot
+    from simrig.robot import SimRobot
 
     made: dict[str, SimRobot] = {}
 

@@ -1,6 +1,7 @@
 """The package layering of DESIGN.md, checked on the source: dependencies point one way.
 
-    foundation (pilworld.types, .geometry, .kinematics) ← calib ← pilworld.config ← hw_drivers ← rest of pilworld
+    foundation (pilworld.types, .geometry, .kinematics) ← calib ← pilworld.config ← hw_drivers (contract, drivers)
+        ← simrig (the simulated rig) ← hw_drivers.fakes (protocol fakes backed by it) ← rest of pilworld
 
 The foundation is the data contract and the geometry every layer shares; it lives in ``pilworld``
 (as the issues ask) but imports nothing from the layers above it, so ``calib`` and ``hw_drivers``
@@ -21,6 +22,10 @@ LAYERS: list[tuple[tuple[str, ...], tuple[str, ...]]] = [
     (FOUNDATION, ()),
     (("calib",), ()),
     (("pilworld.config",), ("calib",)),
+    # The simulated rig implements the Robot contract and its safety caps; nothing else of hw_drivers.
+    (("simrig",), ("calib", "pilworld.config", "hw_drivers.robot", "hw_drivers.safety", "hw_drivers.errors")),
+    # The protocol-level fakes are devices backed by the simulated rig.
+    (("hw_drivers.fakes",), ("calib", "pilworld.config", "hw_drivers", "simrig")),
     (("hw_drivers",), ("calib", "pilworld.config")),
 ]
 
@@ -43,11 +48,11 @@ def _project_imports(path: Path) -> set[str]:
             found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             found.add(node.module)
-    return {n for n in found if n.split(".")[0] in ("pilworld", "calib", "hw_drivers") and n != "pilworld"}
+    return {n for n in found if n.split(".")[0] in ("pilworld", "calib", "hw_drivers", "simrig") and n != "pilworld"}
 
 
 def _sources() -> list[Path]:
-    return sorted(p for pkg in ("pilworld", "calib", "hw_drivers") for p in (ROOT / pkg).rglob("*.py"))
+    return sorted(p for pkg in ("pilworld", "calib", "hw_drivers", "simrig") for p in (ROOT / pkg).rglob("*.py"))
 
 
 def _layer_of(path: Path) -> tuple[tuple[str, ...], tuple[str, ...]] | None:

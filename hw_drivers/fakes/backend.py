@@ -3,7 +3,7 @@
 On a real rig the two UR controllers, the gripper buses and the cameras all look at one physical
 scene. The fakes (:mod:`hw_drivers.fakes`) do the same through a :class:`RigBackend`:
 
-* :class:`SimBackend` — the MuJoCo rig (:class:`hw_drivers.sim.robot.SimRobot`) stepped in real time by
+* :class:`SimBackend` — the MuJoCo rig (:class:`simrig.robot.SimRobot`) stepped in real time by
   one thread that owns every MuJoCo call (an EGL context belongs to the thread that made it). Arm and
   gripper targets set by the fakes are tracked at the rig's control rate; cameras are rendered at
   ``camera_fps`` and served as "the latest frame" like a real camera.
@@ -210,7 +210,7 @@ class SimBackend:
         stream_sizes: dict[str, tuple[int, int]] | None = None,
         start_timeout: float = 60.0,
     ) -> None:
-        from hw_drivers.sim.robot import DEFAULT_RIG
+        from simrig.robot import DEFAULT_RIG
 
         if camera_fps <= 0:
             raise ValueError(f"camera_fps: expected > 0, got {camera_fps}")
@@ -242,7 +242,7 @@ class SimBackend:
     # -- the simulation thread
 
     def _run(self) -> None:
-        from hw_drivers.sim.robot import SimRobot
+        from simrig.robot import SimRobot
 
         try:
             robot = SimRobot(self._rig_arg, self._task)

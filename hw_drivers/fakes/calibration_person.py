@@ -7,7 +7,7 @@ it in front of the camera for the intrinsics. On the fake rig the simulator stan
 * :func:`place_board` — the board on the ``left`` or ``right`` gripper (:class:`BoardMount`, the reference
   bracket: 70 mm beside the tool axis), in a person's ``hand`` (:class:`HandBoard`), or put away (``None``);
 * :class:`BoardPresenter` — the person holds the board still at one pose after another
-  (:func:`~hw_drivers.sim.hand_board.presentation_poses` for the head camera at its streamed size), each for
+  (:func:`~simrig.hand_board.presentation_poses` for the head camera at its streamed size), each for
   ``hold_s`` seconds, like someone following a calibration tool's prompts; it stops after the last pose
   (the board is then lowered out of view) or when asked.
 
@@ -26,9 +26,9 @@ from typing import Any
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from hw_drivers.fakes.backend import SimBackend
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.hand_board import HandBoard, presentation_poses
 from pilworld.config.rig import RigConfig
+from simrig.board_mount import BoardMount
+from simrig.hand_board import HandBoard, presentation_poses
 
 WHERE = ("left", "right", "hand")
 

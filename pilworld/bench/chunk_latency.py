@@ -61,8 +61,8 @@ class RoundSetup:
 
 def round_setup(rig: str | Path, task: str = "sort_cubes") -> RoundSetup:
     """The start (layout :data:`START_SEED`, subtask 0 of ``task``) and the best scripted checkpoint's chunk."""
-    from hw_drivers.sim.robot import SimRobot
     from pilworld.policies.registry import make_policy
+    from simrig.robot import SimRobot
 
     spec = ChunkSpec()
     rig_cfg = RigConfig.load(rig)

@@ -37,7 +37,7 @@ HELD_OUT_SEED = 1_000_000
 
 def sim_starts(rig: RigConfig, n: int, task: str = "sort_cubes") -> list[Observation]:
     """``n`` start observations of held-out layouts (seeds 1,000,000 + i) on the simulated rig."""
-    from hw_drivers.sim.robot import SimRobot
+    from simrig.robot import SimRobot
 
     sim = SimRobot(rig, task)
     sim.connect()

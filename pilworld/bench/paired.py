@@ -75,8 +75,8 @@ TASK_KEYS = ("sr_real", "sr_imag", "abs_delta_sr", "hfr", "sr_real_checker", "n_
 
 
 def protocol(quick: bool, *, subtasks: int | None = None, seed: int | None = None, rounds: int = 5) -> PairedProtocol:
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.policies.registry import policy_names
+    from simrig.tasks import TASK_NAMES
 
     base = PairedProtocol(
         tasks=tuple(TASK_NAMES),

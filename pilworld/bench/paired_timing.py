@@ -41,9 +41,9 @@ def bench_paired(
 ) -> dict[str, Any]:
     import torch
 
-    from hw_drivers.sim.tasks import make_task
     from pilworld.config.rig import RigConfig
     from pilworld.policies.registry import default_checkpoint
+    from simrig.tasks import make_task
 
     spec = ChunkSpec(rounds=rounds)
     control_rate = RigConfig.load(rig).control_rate_hz

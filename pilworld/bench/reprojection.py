@@ -77,7 +77,7 @@ class _Segmenter:
     """MuJoCo segmentation renders of a :class:`SimRobot`'s cameras, as :data:`LABEL_NAMES` labels."""
 
     def __init__(self, robot: Any) -> None:
-        from hw_drivers.sim.gl import make_renderer, mujoco
+        from simrig.gl import make_renderer, mujoco
 
         self._robot = robot
         model = robot._model  # the sim rig has no public handle on its MjModel; read-only use
@@ -120,9 +120,9 @@ def collect_clips(
     progress: bool = False,
 ) -> list[Clip]:
     """``episodes`` held-out runs per task (``subtasks`` subtasks each, R rounds each) as clips."""
-    from hw_drivers.sim.robot import SimRobot
     from pilworld.bench.world_model import TRAINING_SEEDS, heldout_checkpoints
     from pilworld.policies.scripted import ScriptedPolicy
+    from simrig.robot import SimRobot
 
     spec = spec or ChunkSpec()
     if seed0 < TRAINING_SEEDS.stop:

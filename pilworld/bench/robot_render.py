@@ -10,7 +10,7 @@ the camera images. The backend under test renders the robot alone (:mod:`pilworl
 
 Configurations (:func:`sample_configs`), "per arm": for each arm, N configurations in which that arm
 takes a random configuration — each joint uniform within ±0.6 rad of
-:data:`~hw_drivers.sim.poses.HOME_Q14` (the gripper stays over or beside the table, in front of the head
+:data:`~simrig.poses.HOME_Q14` (the gripper stays over or beside the table, in front of the head
 camera), grip uniform in [0, 1] — while the other arm takes a random configuration of its own (half of
 the time) or stays at home. A draw is rejected (and counted) if any moving robot geom dips below
 ``z = 0.005`` m (its exact lowest point from its pose and size; geoms that already reach below that
@@ -36,9 +36,6 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from hw_drivers.sim.gl import make_renderer, mujoco
-from hw_drivers.sim.poses import HOME_Q14
-from hw_drivers.sim.robot import DEFAULT_RIG, SimRobot
 from pilworld.bench.common import machine_info
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.robot_model import (
@@ -53,6 +50,9 @@ from pilworld.control_video.robot_model import (
 )
 from pilworld.control_video.robot_render import BACKENDS, Backend, make_robot_renderer
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, STATE_DIM
+from simrig.gl import make_renderer, mujoco
+from simrig.poses import HOME_Q14
+from simrig.robot import DEFAULT_RIG, SimRobot
 
 __all__ = [
     "CHUNK",

@@ -28,11 +28,11 @@ def run_sim_bench(
     workers: int | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
-    from hw_drivers.sim.gl import mujoco
-    from hw_drivers.sim.robot import SimRobot
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.collection.rollout import run_subtask
     from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPolicy
+    from simrig.gl import mujoco
+    from simrig.robot import SimRobot
+    from simrig.tasks import TASK_NAMES
 
     spec = ChunkSpec()
     robot = SimRobot(rig_path, task)

@@ -472,10 +472,10 @@ def run_speed_accuracy(
 ) -> dict[str, Any]:
     """The sweep (see the module docstring). ``closed_loop=False`` skips the closed loop (then there is no knee:
     ``default`` says why); ``subtasks`` overrides the closed loop's subtasks per task × checkpoint."""
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.bench.chunk_latency import imagined_env, round_setup, time_rounds
     from pilworld.bench.world_model import HELDOUT_SEED0, heldout_dataset, run_world_model_bench
     from pilworld.config.rig import RigConfig
+    from simrig.tasks import TASK_NAMES
 
     t0 = time.monotonic()
     rig_cfg = RigConfig.load(rig)

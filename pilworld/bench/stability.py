@@ -647,10 +647,10 @@ def probe(
 ) -> dict[str, Any]:
     """Probes 3-7 from ``starts`` subtasks per task × checkpoint (layouts from ``seed0``), for each model
     (default ``DEFAULT_MODELS``): ``{"models": {name: summary}, "protocol": …, "refused": […]}``."""
-    from hw_drivers.sim.tasks import make_task
     from pilworld.config.rig import RigConfig
     from pilworld.paired.runner import plan_subtasks
     from pilworld.paired.stations import SimStation
+    from simrig.tasks import make_task
 
     variants = list(models) if models is not None else resolve_models()
     rig_cfg = RigConfig.load(rig)
@@ -826,8 +826,8 @@ def run_stability(
     progress: bool = True,
 ) -> dict[str, Any]:
     """The whole bench for ``models`` (default ``DEFAULT_MODELS``); see the module docstring."""
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.bench.paired import failure_faithfulness
+    from simrig.tasks import TASK_NAMES
 
     t0 = time.monotonic()
     variants = resolve_models(models)

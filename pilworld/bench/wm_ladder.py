@@ -103,7 +103,7 @@ class LadderConfig:
         unknown = [r for r in self.rungs if r not in RUNGS]
         if unknown or not self.rungs:
             raise ValueError(f"rungs: unknown rung(s) {unknown or list(self.rungs)} (known: {', '.join(RUNGS)})")
-        from hw_drivers.sim.tasks import TASK_NAMES
+        from simrig.tasks import TASK_NAMES
 
         bad = [t for t in self.tasks if t not in TASK_NAMES]
         if bad or not self.tasks:
@@ -137,7 +137,7 @@ class LadderConfig:
         return tuple(c.name for c in CHECKPOINTS)
 
     def plan(self) -> list[PairedSubtask]:
-        from hw_drivers.sim.tasks import make_task
+        from simrig.tasks import make_task
 
         plan: list[PairedSubtask] = []
         for t in self.tasks:
@@ -562,7 +562,7 @@ class Lab:
     @property
     def robot(self) -> Any:
         if self._robot is None:
-            from hw_drivers.sim.robot import SimRobot
+            from simrig.robot import SimRobot
 
             self._robot = SimRobot(self.rig_cfg, self.cfg.tasks[0])
             self._robot.connect()

@@ -4,7 +4,7 @@ The pose planner has no renderer (it must work for a real rig too), so it tests 
 line of sight from the camera centre to a board point must clear every capsule of both arms by a
 margin, and the board plate must not pass through the holding arm's links. The capsules enclose the
 simulated rig's visuals (link capsules, joint housings, coupling, palm and open fingers, see
-``hw_drivers.sim.scene``) and are generous enough for a real UR5e with a parallel gripper.
+``simrig.scene``) and are generous enough for a real UR5e with a parallel gripper.
 """
 
 from __future__ import annotations

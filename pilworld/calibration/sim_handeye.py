@@ -21,9 +21,6 @@ import numpy.typing as npt
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.rotations import pose_difference
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.poses import HOME_Q14
-from hw_drivers.sim.robot import SimRobot
 from pilworld.calibration.check import gripper_reprojection_errors
 from pilworld.calibration.collect import collect_views
 from pilworld.calibration.planner import PlannerSettings, plan_board_poses
@@ -31,6 +28,9 @@ from pilworld.calibration.recording import RecordedView, Recording, SimTruth
 from pilworld.calibration.solve import HandEyeOutcome, solve_recording
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_SIDES, HEAD_VIEW
+from simrig.board_mount import BoardMount
+from simrig.poses import HOME_Q14
+from simrig.robot import SimRobot
 
 __all__ = [
     "DEFAULT_BOARD",

@@ -13,7 +13,7 @@ control video draws).
 
 * **Simulated rig** (:func:`record_wrist_check_sim`): the wrist planner chooses new camera poses (seed
   ``seed + HELD_OUT_SEED_OFFSET``, so not the calibration's), the arm moves there through the ``Robot``
-  contract and the camera renders the :class:`hw_drivers.sim.table_board.TableBoard`, whose pose is known
+  contract and the camera renders the :class:`simrig.table_board.TableBoard`, whose pose is known
   exactly.
 * **Recorded folder**: the views a wrist calibration saves (``NNN.png`` + ``poses.json``) or new ones in the
   same format; ``T_rig_board`` then comes from the calibration report (its ``T_rig_board``).
@@ -33,8 +33,6 @@ import numpy.typing as npt
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.table_board import TableBoard
 from pilworld.calibration.collect import collect_views
 from pilworld.calibration.recording import RecordedView, Recording
 from pilworld.calibration.sim_handeye import DEFAULT_BOARD, HELD_OUT_SEED_OFFSET
@@ -44,6 +42,8 @@ from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
 from pilworld.kinematics.dual_arm import DualArmKinematics
 from pilworld.types import ARM_LAYOUT
+from simrig.robot import SimRobot
+from simrig.table_board import TableBoard
 
 __all__ = ["WristCheckResult", "check_wrist_views", "draw_wrist_overlay", "record_wrist_check_sim"]
 

@@ -37,7 +37,6 @@ from calib.camera_model import CameraModel
 from calib.handeye import DegenerateMotionError
 from calib.handeye_in_hand import check_eye_in_hand_motion
 from calib.rotations import rigid, rotation_angle, rotation_exp
-from hw_drivers.sim.scene import FINGER_CENTRE_BELOW_TCP, FINGER_HALF, PALM_HALF
 from pilworld.calibration.occlusion import arm_capsules, segment_distances
 from pilworld.calibration.planner import PlannedPose, PosePlan, visit_order
 from pilworld.geometry import invert_transform
@@ -45,6 +44,7 @@ from pilworld.kinematics.dual_arm import ArmMount, DualArmKinematics
 from pilworld.kinematics.fk import fk_frames
 from pilworld.kinematics.ik import ik_nearest
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, STATE_DIM
+from simrig.scene import FINGER_CENTRE_BELOW_TCP, FINGER_HALF, PALM_HALF
 
 __all__ = ["WristPlannerSettings", "gripper_boxes_tcp", "plan_wrist_poses"]
 
@@ -111,7 +111,7 @@ class WristPlannerSettings:
 def gripper_boxes_tcp(max_opening_m: float, grip: float) -> list[FloatArray]:
     """``(8, 3)`` corner sets (TCP frame) of the palm and both finger pads at ``grip`` (0 closed … 1 open).
 
-    The parallel-jaw gripper of the simulated rig (``hw_drivers.sim.scene``), grown by a few millimetres:
+    The parallel-jaw gripper of the simulated rig (``simrig.scene``), grown by a few millimetres:
     a fair stand-in for a real rig's parallel gripper, which is what a wrist camera beside the palm sees.
     """
     g = min(max(float(grip), 0.0), 1.0)

@@ -1,6 +1,6 @@
 """Eye-in-hand calibration of a wrist camera on the simulated rig, where the answer is known.
 
-A :class:`hw_drivers.sim.table_board.TableBoard` lies flat on the table beside the tasks' objects (which
+A :class:`simrig.table_board.TableBoard` lies flat on the table beside the tasks' objects (which
 are moved to the far edge of the table so they never cover it); the wrist camera renders at a
 calibration resolution (``resolution`` pixels wide, the rig's field of view, so the intrinsics scale
 exactly); the planner (:mod:`.wrist_planner`), the collector (:func:`pilworld.calibration.collect.collect_views`)
@@ -23,9 +23,6 @@ import numpy.typing as npt
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.rotations import pose_difference
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.table_board import TableBoard
-from hw_drivers.sim.tasks import ObjectPose
 from pilworld.calibration.collect import collect_views
 from pilworld.calibration.recording import Recording
 from pilworld.calibration.sim_handeye import DEFAULT_BOARD
@@ -33,6 +30,9 @@ from pilworld.calibration.wrist_planner import WristPlannerSettings, plan_wrist_
 from pilworld.calibration.wrist_solve import WristHandEye, calibrate_wrist
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
+from simrig.robot import SimRobot
+from simrig.table_board import TableBoard
+from simrig.tasks import ObjectPose
 
 __all__ = [
     "TRUTH_KEY",

@@ -462,9 +462,9 @@ def _names(value: str, all_names: list[str], what: str) -> list[str]:
 
 
 def _sim(args: argparse.Namespace) -> int:
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.bench.sim import run_sim_bench
     from pilworld.policies.scripted import CHECKPOINTS
+    from simrig.tasks import TASK_NAMES
 
     tasks = _names(args.tasks, list(TASK_NAMES), "--tasks")
     ckpts = _names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
@@ -571,9 +571,9 @@ def _world_model_presets(args: argparse.Namespace) -> int:
 def _world_model(args: argparse.Namespace) -> int:
     # Imported here: the checkpoint loader pulls in torch and the model code, which other commands do not need.
     import pilworld.world_model as world_model
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.bench.world_model import HELDOUT_SEED0, heldout_dataset, run_world_model_bench
     from pilworld.world_model.checkpoint import load_world_model
+    from simrig.tasks import TASK_NAMES
 
     # v1 by default: the bench's presets, steps and open-loop figures (docs/world_model.md) are v1's.
     checkpoint = args.checkpoint or getattr(world_model, "V1_CHECKPOINT", None)

@@ -157,7 +157,7 @@ def _current(args: argparse.Namespace, rig: RigConfig) -> tuple[dict[str, np.nda
     if args.task is not None and args.current_images is not None:
         raise ValueError("--task and --current-images: give one source of the current frames, not both")
     if args.task is not None:
-        from hw_drivers.sim.robot import SimRobot
+        from simrig.robot import SimRobot
 
         with SimRobot(rig, args.task) as sim:
             sim.reset(seed=args.seed, subtask=args.subtask, history=0)

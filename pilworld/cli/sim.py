@@ -43,9 +43,9 @@ def register(sub: Any) -> None:
 
 
 def _collect(args: argparse.Namespace) -> int:
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.collection.collect import collect
     from pilworld.policies.scripted import CHECKPOINTS
+    from simrig.tasks import TASK_NAMES
 
     if args.episodes < 1:
         raise ValueError(f"--episodes: expected at least 1, got {args.episodes}")
@@ -77,8 +77,8 @@ def _collect(args: argparse.Namespace) -> int:
 def _show(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from hw_drivers.sim.robot import SimRobot
     from pilworld.io.video import write_png
+    from simrig.robot import SimRobot
 
     if args.scale < 1:
         raise ValueError(f"--scale: expected an integer >= 1, got {args.scale}")

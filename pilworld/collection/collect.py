@@ -187,7 +187,7 @@ def collect(
 
 
 def _num_subtasks(task: str) -> int:
-    from hw_drivers.sim.tasks import make_task
+    from simrig.tasks import make_task
 
     return make_task(task).num_subtasks
 

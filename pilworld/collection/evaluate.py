@@ -42,7 +42,7 @@ def success_rates(
     progress: bool = True,
 ) -> dict[str, dict[str, float]]:
     """{task: {checkpoint: success rate over ``subtasks`` starts}}."""
-    from hw_drivers.sim.tasks import make_task
+    from simrig.tasks import make_task
 
     if subtasks < 1:
         raise ValueError(f"subtasks: expected at least 1, got {subtasks}")

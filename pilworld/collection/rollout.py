@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from hw_drivers.sim.robot import SimRobot, SubtaskCheck
 from pilworld.types import ActionChunk, ChunkSpec, Observation
+from simrig.robot import SimRobot, SubtaskCheck
 
 PolicyFn = Callable[[Observation, str], NDArray[np.floating]]
 

@@ -19,7 +19,7 @@ _ROBOTS: dict[tuple[str, str], Any] = {}
 
 def worker_robot(rig_path: str, task: str) -> Any:
     """This process's connected ``SimRobot`` for ``(rig_path, task)``, made on first use."""
-    from hw_drivers.sim.robot import SimRobot
+    from simrig.robot import SimRobot
 
     key = (rig_path, task)
     if key not in _ROBOTS:

@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     chunk = reach_and_grasp_chunk(args.horizon)
     if args.from_sim_start:
-        from hw_drivers.sim.poses import HOME_Q14 as SIM_START
+        from simrig.poses import HOME_Q14 as SIM_START
 
         chunk = starting_at(chunk, SIM_START)
     np.save(args.out, chunk)

@@ -1,7 +1,7 @@
 """The robot alone, as the simulated rig is built: geoms, their parts, and where they are for a 14-d vector.
 
 One geometry for everything: the robot model is the MuJoCo model the simulated rig is generated from
-(:func:`hw_drivers.sim.scene.build_mjcf`: the arms from the rig's UR models, mounts, grippers; the table,
+(:func:`simrig.scene.build_mjcf`: the arms from the rig's UR models, mounts, grippers; the table,
 floor and objects hidden) — or the user's own MJCF robot (``robot_model:`` in the rig config). Joint
 positions and finger openings are set directly (no physics) and MuJoCo's forward kinematics places the
 geoms. Both renderers (:mod:`~pilworld.control_video.rasterise`, the analytic one, and
@@ -21,11 +21,11 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from hw_drivers.sim.gl import mujoco
-from hw_drivers.sim.scene import build_mjcf, compile_scene
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import as_finite_array
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, STATE_DIM
+from simrig.gl import mujoco
+from simrig.scene import build_mjcf, compile_scene
 
 PART_NAMES: Final = ("background", "left_arm", "left_fingers", "right_arm", "right_fingers")
 PART_IDS: Final = {name: i for i, name in enumerate(PART_NAMES)}

@@ -160,7 +160,7 @@ def robot_spec_for(cfg: ImagineConfig, source: StartsSource) -> RobotSpec:
             f"--starts: {source.root} does not say which robot recorded it; on a hardware rig record starts "
             "with pilworld paired record-starts"
         )
-    from hw_drivers.sim.robot import SimRobot
+    from simrig.robot import SimRobot
 
     return SimRobot(cfg.rig, "sort_cubes").spec  # the simulated rig's limits (building it connects nothing)
 

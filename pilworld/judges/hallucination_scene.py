@@ -11,7 +11,7 @@ it tells "the arm is there" from "the arm is not there" on every frame of every 
 0.96, over 9,120 arm-frames of the simulated training set).
 
 Why colour rules for "arm pixels": the scene is a warm beige table under a white light, grey arms,
-dark grippers and saturated objects (see ``hw_drivers/sim/scene.py``). A pixel is *table* when its
+dark grippers and saturated objects (see ``simrig/scene.py``). A pixel is *table* when its
 chromaticity is close to the table's (learnt from the episode's start frame, outside the predicted
 arms and the objects) and it is not much darker than the table; *object* when
 :func:`pilworld.perception.colour.segment` gives it a class; *arm-like* otherwise. Static dark
@@ -252,13 +252,11 @@ def colourful_mask(images: Image, min_saturation: float = 0.3, min_value: float 
 
 
 def task_classes(task: str, instruction: str = "") -> list[ColourClass]:
-    """The object colours of a simulated task (by name, else by instruction); [] when unknown."""
-    from pilworld.policies.scripted.knowledge import KNOWLEDGE, knowledge_for_instruction
+    """The object colours of a paper task (by name, else by instruction); [] when unknown."""
+    from pilworld.judges.vision_tasks import task_spec
 
-    if task in KNOWLEDGE:
-        return list(KNOWLEDGE[task]().classes)
     try:
-        return list(knowledge_for_instruction(instruction).classes)
+        return list(task_spec(task, instruction).classes)
     except ValueError:
         return []
 

@@ -49,7 +49,7 @@ class BoxShape:
 
 @dataclass(frozen=True)
 class BowlShape:
-    """A bowl as built by ``hw_drivers.sim.objects.bowl_object``: flaring wall, vertical lip on top [m]."""
+    """A bowl as built by ``simrig.objects.bowl_object``: flaring wall, vertical lip on top [m]."""
 
     bottom_radius: float
     top_radius: float

@@ -1,9 +1,10 @@
-"""What the image-only judge knows about each simulated task: fixed task knowledge, no simulator state.
+"""What the hand-written image-only judge knows about the paper's three tasks: read from their task files.
 
-The same prior the scripted policies use (:mod:`pilworld.policies.scripted.knowledge`): object colours
-and sizes, where the slots and the stacking mark are, and what each subtask asks for — written down
-from the task definitions in ``hw_drivers.sim.tasks``, as a person judging the videos would know them
-from the task description. Nothing here depends on a seed or a layout.
+The reference judge of the paper's tasks (cubes and bowls only): object colours and sizes, where the
+slots and the stacking mark are, and what each subtask asks for, read through :func:`simrig.tasks.load_task`
+from ``configs/tasks/`` — as a person judging the videos would know them from the task description.
+Nothing here depends on a seed or a layout. It reads task files, which a judge may not: it stays only as
+the named reference for the paper's tasks until the learned judges replace it.
 """
 
 from __future__ import annotations
@@ -11,12 +12,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hw_drivers.sim.tasks import sort_cubes as sc
-from hw_drivers.sim.tasks import stack_blocks as sb
-from hw_drivers.sim.tasks import stack_bowls as sw
 from pilworld.judges.vision_fit import BowlShape, BoxShape, Shape
 from pilworld.perception.colour import ColourClass
-from pilworld.policies.scripted.knowledge import KNOWLEDGE
+from simrig.tasks import PAPER_TASKS, Task, load_task
+from simrig.tasks import schema as s
 
 
 @dataclass(frozen=True)
@@ -78,70 +77,57 @@ class TaskSpec:
         return self.goals[index]
 
 
-def _classes(task: str) -> dict[str, ColourClass]:
-    return {c.name: c for c in KNOWLEDGE[task]().classes}
+def _shape(task: Task, name: str) -> Shape:
+    obj = next(o for o in task.spec.objects if o.name == name)
+    if isinstance(obj, s.BoxObject) and len(set(obj.size)) == 1:
+        return BoxShape(obj.size[0])
+    if isinstance(obj, s.BowlObject):
+        return BowlShape(obj.bottom_radius, obj.top_radius, obj.height, obj.wall, obj.lip)
+    raise ValueError(f"the image-only judge models cubes and bowls only; {name} of task {task.name!r} is a {obj.shape}")
 
 
-def _sort_cubes() -> TaskSpec:
-    colours = _classes(sc.SortCubes.name)
-    objects = tuple(SceneObject(colours[name], BoxShape(edge)) for name, edge, _, _ in sc.CUBES)
-    goals = tuple(
-        SubtaskGoal(k, name, 0.0, sc.TOLERANCE, goal_xy=(sc.SLOT_X, sc.SLOT_YS[k]), square=True)
-        for k, (name, _, _, _) in enumerate(sc.CUBES)
-    )
-    return TaskSpec(sc.SortCubes.name, sc.SortCubes.instruction, objects, goals)
-
-
-def _stack_bowls() -> TaskSpec:
-    colours = _classes(sw.StackBowls.name)
-    objects = tuple(
-        SceneObject(colours[name], BowlShape(rb, rt, h, sw.WALL, sw.LIP)) for name, rb, rt, h, _, _ in sw.BOWLS
-    )
-    names = [b[0] for b in sw.BOWLS]
+def _from_file(task: Task) -> TaskSpec:
+    """The judge's prior of a paper task, read from its task file (the chains of goals, their heights)."""
+    objects = tuple(SceneObject(ColourClass(n, task.colour(n)), _shape(task, n)) for n in task.object_names)
+    heights = task.done_heights()
+    moved = [task.subtask_object(k) for k in range(task.num_subtasks)]
     goals = []
-    for k, name in enumerate(names):
-        z = sw.nested_base_height(k)
-        if k == 0:
-            goals.append(SubtaskGoal(k, name, z, sw.TOLERANCE, goal_xy=sw.STACK_XY, above=tuple(names[1:])))
+    for k, name in enumerate(moved):
+        where = task.goal_placement(k)
+        assert where is not None
+        # What may come to stand on this goal's target once stacked: the later subtasks' objects.
+        above = tuple(moved[k + 1 :])
+        if where.kind == "region":
+            region = task.regions[where.target]
+            square = region.half_size is not None
+            tol = region.half_size[0] if region.half_size is not None else float(region.radius or 0.0)
+            later = (task.goal_placement(j) for j in range(k + 1, len(moved)))
+            chained = any(p is not None and p.target == name for p in later)
+            goals.append(
+                SubtaskGoal(
+                    k, name, heights[name], tol, goal_xy=region.centre, square=square, above=above if chained else ()
+                )
+            )
         else:
             goals.append(
                 SubtaskGoal(
                     k,
                     name,
-                    z,
-                    sw.TOLERANCE,
-                    reference=names[k - 1],
-                    reference_z=sw.nested_base_height(k - 1),
-                    above=tuple(names[k + 1 :]),
+                    heights[name],
+                    where.tolerance,
+                    reference=where.target,
+                    reference_z=heights[where.target],
+                    above=above,
                 )
             )
-    return TaskSpec(sw.StackBowls.name, sw.StackBowls.instruction, objects, tuple(goals))
+    return TaskSpec(task.name, task.instruction, objects, tuple(goals))
 
 
-def _stack_blocks() -> TaskSpec:
-    colours = _classes(sb.StackBlocks.name)
-    objects = tuple(SceneObject(colours[name], BoxShape(sb.BLOCK)) for name, _ in sb.BLOCKS)
-    names = [b[0] for b in sb.BLOCKS]
-    goals = tuple(
-        SubtaskGoal(
-            k,
-            names[k + 1],
-            (k + 1) * sb.BLOCK,
-            sb.TOLERANCE,
-            reference=names[k],
-            reference_z=k * sb.BLOCK,
-            above=tuple(names[k + 2 :]),
-        )
-        for k in range(sb.StackBlocks.num_subtasks)
-    )
-    return TaskSpec(sb.StackBlocks.name, sb.StackBlocks.instruction, objects, goals)
-
-
-TASK_SPECS: Mapping[str, TaskSpec] = {t.name: t for t in (_sort_cubes(), _stack_bowls(), _stack_blocks())}
+TASK_SPECS: Mapping[str, TaskSpec] = {n: _from_file(load_task(n)) for n in PAPER_TASKS}
 
 
 def task_spec(task: str, instruction: str = "") -> TaskSpec:
-    """The task named ``task`` (``extra.sim_task``), or else the one whose instruction this is."""
+    """The paper task named ``task`` (the episode's task name), or else the one whose instruction this is."""
     if task in TASK_SPECS:
         return TASK_SPECS[task]
     want = instruction.strip().lower()

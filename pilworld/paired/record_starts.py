@@ -32,8 +32,8 @@ def record_starts(
     progress: bool = True,
 ) -> dict[str, Any]:
     """Record ``count`` starts per task (subtasks 0, 1, … of layout ``seed``, then ``seed + 1``, …)."""
-    from hw_drivers.sim.tasks import make_task
     from pilworld.collection.collect import dataset_spec
+    from simrig.tasks import make_task
 
     spec = spec or ChunkSpec()
     # The paired run's own validation of rig, task names and count (no checkpoint runs here).

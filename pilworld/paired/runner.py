@@ -115,7 +115,7 @@ class PairedConfig:
 
     @property
     def tasks(self) -> list[str]:
-        from hw_drivers.sim.tasks import TASK_NAMES
+        from simrig.tasks import TASK_NAMES
 
         names = (
             list(TASK_NAMES) if self.task.strip() == "all" else [t.strip() for t in self.task.split(",") if t.strip()]
@@ -341,8 +341,8 @@ def paired_run(
     through :class:`~pilworld.paired.stations.HardwareStation`; ``operator`` answers its prompts
     (default: the terminal).
     """
-    from hw_drivers.sim.tasks import make_task
     from pilworld.collection.collect import dataset_spec
+    from simrig.tasks import make_task
 
     root = Path(cfg.out)
     restore_run(root)  # a damaged table or setting of a stored run comes back from its backup first

@@ -73,7 +73,7 @@ class SimStation:
     shared_starts = True  # a layout seed lays out the same scene, bit for bit, whichever checkpoint runs
 
     def __init__(self, rig_path: str | Path, task: str) -> None:
-        from hw_drivers.sim.robot import SimRobot
+        from simrig.robot import SimRobot
 
         self._robot = SimRobot(rig_path, task)
 

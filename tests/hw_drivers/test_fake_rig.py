@@ -17,8 +17,6 @@ import numpy as np
 import pytest
 
 from hw_drivers.errors import DeviceConnectionError, ProtectiveStopError, RobotError, StaleObservationError
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.tasks import make_task
 from pilworld.config.rig import RigConfig
 from pilworld.data.outcomes import read_outcomes
 from pilworld.data.reader import EpisodeStore
@@ -29,6 +27,8 @@ from pilworld.paired.stations import HardwareStation
 from pilworld.policies.registry import make_policy
 from pilworld.rollout import closed_loop
 from pilworld.types import ChunkSpec, Subtask
+from simrig.robot import SimRobot
+from simrig.tasks import make_task
 
 FAKE = "configs/rig/fake_dual_ur5e.yaml"
 SIM = "configs/rig/sim_dual_ur5e.yaml"

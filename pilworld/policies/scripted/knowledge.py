@@ -1,31 +1,37 @@
-"""What the scripted policies know about each task, and how they read the task's state from an image.
+"""What a scripted policy knows about its task, read from the task file, and how it reads progress from an image.
 
-This is the policy's *prior*: object colours and sizes, where the slots and the stacking mark are,
-and how the paper's instruction maps to a task. It is what a trained VLA has learned; it is not
-simulator state. Each call sees only the head-camera image: every object is found by colour,
-back-projected through the rig's ``CameraModel`` onto the plane where it would sit, and the task's
-progress is inferred from those positions (which cube already sits in its slot, which block is
-already on the tower).
+This is the policy's *prior*, what a trained VLA has learned from its task: the objects' colours and shapes,
+where each subtask's goal puts its object (a region, on a support, inside a container) and at what height.
+It is not simulator state. Each call sees only the head-camera image: every object is found by colour,
+back-projected through the rig's ``CameraModel`` onto the plane where it would sit, and the task's progress
+is inferred from those positions.
+
+Subtasks form *chains*: a subtask whose goal puts its object on or inside the object of an earlier subtask
+continues that one's chain. A chain is rooted at a region (the slots, the stacking mark: each member is
+judged against the region, and a member seen in place implies every one below it) or at an object no
+subtask moves (the first block of a tower: judged against where that object is seen, trusted only while it
+is mostly visible, since what is stacked on it hides it from above).
 """
 
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from calib.camera_model import CameraModel
-from hw_drivers.sim.tasks import sort_cubes as sc
-from hw_drivers.sim.tasks import stack_blocks as sb
-from hw_drivers.sim.tasks import stack_bowls as sw
 from pilworld.perception.colour import Blob, ColourClass, largest_blob, segment
+from simrig.tasks import Task, load_task
+from simrig.tasks.shapes import Geometry
 
-GRASP_Z = 0.022  # TCP height for grasping a cube or block resting on the table [m]
-FULL_BLOCK_PX = 25  # a block's blob in the 128×128 head view when mostly visible (~35–55 px measured)
+FULL_BLOCK_PX = 25  # a 4 cm block's blob in the 128×128 head view when mostly visible (~35–55 px measured)
+FULL_BLOCK_RADIUS = 0.02 * math.sqrt(2)  # that block's horizontal radius [m]; other objects scale by area
+DONE_TOL = 0.025  # a member seen this close to its chain's target counts as done [m]
+LOOSE_TOL = 0.045  # … when the target object shows only a sliver
+# Release heights above the goal's rest height + grasp height, by goal kind (set down, not dropped).
+RELEASE_MARGIN = {"region": 0.008, "on": 0.006, "inside": 0.01}
 XY = NDArray[np.float64]
 
 
@@ -89,15 +95,140 @@ def _near(a: XY, b: XY | tuple[float, float], tol: float) -> bool:
     return bool(np.all(np.isfinite(a))) and float(np.hypot(*(np.asarray(a) - np.asarray(b)))) < tol
 
 
-class TaskKnowledge(ABC):
-    """One task as a policy understands it."""
+@dataclass(frozen=True)
+class Member:
+    """One subtask as the policy plans it: its object, where the goal puts it, and at what height."""
 
-    instruction: str
-    classes: list[ColourClass]
+    index: int
+    obj: str
+    kind: str  # region | on | inside
+    target: str  # the region or the object it goes onto or into
+    parent: int | None  # the earlier subtask whose object is the target (same chain), or None
+    rest: float  # underside height once done [m]
+    geometry: Geometry
 
-    @abstractmethod
+
+class TaskKnowledge:
+    """One task file as a policy understands it."""
+
+    def __init__(self, task: Task) -> None:
+        self.task = task
+        self.instruction = task.instruction
+        self.classes = [ColourClass(n, task.colour(n)) for n in task.object_names]
+        heights = task.done_heights()
+        moved = {task.subtask_object(k): k for k in range(task.num_subtasks)}
+        self.members: list[Member] = []
+        for k in range(task.num_subtasks):
+            where = task.goal_placement(k)
+            if where is None:
+                continue
+            obj = task.subtask_object(k)
+            parent = moved.get(where.target) if where.kind != "region" else None
+            if parent is not None and parent >= k:
+                parent = None
+            self.members.append(Member(k, obj, where.kind, where.target, parent, heights[obj], task.geometry[obj]))
+
+    def geometry(self, obj: str) -> Geometry:
+        return self.task.geometry[obj]
+
+    def member(self, obj: str) -> Member | None:
+        return next((m for m in self.members if m.obj == obj), None)
+
+    def _root(self, m: Member) -> Member:
+        while m.parent is not None:
+            m = next(p for p in self.members if p.index == m.parent)
+        return m
+
     def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
-        """Per object in task order: (name, its pick-and-place if it can be planned, whether it looks done)."""
+        """Per subtask in order: (object, its pick-and-place if it can be planned, whether it looks done)."""
+        chains: dict[int, list[Member]] = {}
+        for m in self.members:
+            chains.setdefault(self._root(m).index, []).append(m)
+        verdict: dict[int, tuple[str, Intent | None, bool]] = {}
+        for chain in chains.values():
+            root = chain[0]
+            if root.kind == "region":
+                verdict.update(self._region_chain(chain, seen, camera))
+            else:
+                verdict.update(self._object_chain(chain, seen, camera))
+        return [verdict[m.index] for m in self.members]
+
+    def _resting_xy(self, m: Member, seen: Sightings, camera: CameraModel) -> XY | None:
+        uv = seen.uv.get(m.obj)
+        g = m.geometry
+        return None if uv is None else _bp(camera, uv, g.bottom + g.mid)
+
+    def _intent(self, m: Member, xy: XY, goal: XY | tuple[float, float]) -> Intent:
+        g = m.geometry
+        release = m.rest + g.grasp.height + RELEASE_MARGIN[m.kind] if g.grasp.kind == "pinch" else 0.0
+        grasp = (float(xy[0]), float(xy[1]), g.grasp.height)
+        return Intent(m.obj, grasp, (float(goal[0]), float(goal[1])), release)
+
+    def _region_chain(
+        self, chain: list[Member], seen: Sightings, camera: CameraModel
+    ) -> dict[int, tuple[str, Intent | None, bool]]:
+        """Members judged against the region: one seen in place implies every one below it."""
+        region = self.task.regions[chain[0].target]
+        mark = np.asarray(region.centre, dtype=np.float64)
+        placed: list[XY | None] = []
+        for m in chain:
+            uv = seen.uv.get(m.obj)
+            placed.append(None if uv is None else _bp(camera, uv, m.rest + m.geometry.bottom + m.geometry.mid))
+        at_mark = [p is not None and _near(p, mark, DONE_TOL) for p in placed]
+        out: dict[int, tuple[str, Intent | None, bool]] = {}
+        stacked = True
+        target: XY | None = mark
+        for i, m in enumerate(chain):
+            done = stacked and any(at_mark[i:])
+            xy = self._resting_xy(m, seen, camera)
+            intent = None if xy is None or target is None else self._intent(m, xy, target)
+            out[m.index] = (m.obj, intent, done)
+            stacked = done
+            # The next member goes onto or into this one: aim at where it is seen, else at the region.
+            here = placed[i]
+            target = (here if here is not None and at_mark[i] else mark) if done else None
+        return out
+
+    def _object_chain(
+        self, chain: list[Member], seen: Sightings, camera: CameraModel
+    ) -> dict[int, tuple[str, Intent | None, bool]]:
+        """A tower on an object no subtask moves; its own sighting is trusted only while mostly visible."""
+        base = chain[0].target
+        bgeo = self.task.geometry[base]
+        tower: XY | None = None
+        loose: XY | None = None  # an untrusted estimate, good enough to tell "near" from "elsewhere"
+        if base in seen.uv:
+            loose = _bp(camera, seen.uv[base], bgeo.bottom + bgeo.mid)
+            full = FULL_BLOCK_PX * (bgeo.radius / FULL_BLOCK_RADIUS) ** 2
+            if seen.count.get(base, 0) >= full * seen.scale**2:
+                tower = loose
+        out: dict[int, tuple[str, Intent | None, bool]] = {}
+        stacked = True
+        for level, m in enumerate(chain, start=1):
+            if m.obj not in seen.uv:
+                out[m.index] = (m.obj, None, False)
+                stacked = False
+                continue
+            g = m.geometry
+            on_tower = _bp(camera, seen.uv[m.obj], m.rest + g.bottom + g.mid)
+            if tower is not None:
+                done = stacked and _near(on_tower, tower, DONE_TOL)
+            elif loose is not None:  # the level below shows a sliver: this one sits on it if near it
+                done = stacked and _near(on_tower, loose, LOOSE_TOL)
+            else:  # the base was never seen at all: only something standing on it hides it completely
+                done = stacked and level == 1
+            goal_xy = tower if tower is not None else loose
+            intent = None
+            if goal_xy is not None:
+                xy = self._resting_xy(m, seen, camera)
+                assert xy is not None
+                intent = self._intent(m, xy, goal_xy)
+            out[m.index] = (m.obj, intent, done)
+            if done:
+                tower = loose = on_tower
+            else:
+                stacked = False
+        return out
 
     def intent_for(self, obj: str, seen: Sightings, camera: CameraModel) -> Intent | None:
         """The pick-and-place of ``obj`` (e.g. the object in the hand), done or not."""
@@ -113,152 +244,32 @@ class TaskKnowledge(ABC):
             return None
         return _bp(camera, np.asarray(blob.centroid_uv), z)
 
-
-def _rgb(rgba: tuple[float, ...]) -> tuple[float, float, float]:
-    return (rgba[0], rgba[1], rgba[2])
-
-
-class SortCubesKnowledge(TaskKnowledge):
-    instruction = sc.SortCubes.instruction
-
-    def __init__(self) -> None:
-        self.classes = [ColourClass(n, _rgb(rgba)) for n, _, rgba, _ in sc.CUBES]
-
-    def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
-        out: list[tuple[str, Intent | None, bool]] = []
-        for k, (name, edge, _, _) in enumerate(sc.CUBES):
-            uv = seen.uv.get(name)
-            slot = (sc.SLOT_X, sc.SLOT_YS[k])
-            if uv is None:
-                out.append((name, None, False))  # never seen: cannot act on it
-                continue
-            xy = _bp(camera, uv, edge / 2)
-            intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), slot, GRASP_Z + 0.008)
-            out.append((name, intent, _near(xy, slot, 0.025)))
-        return out
-
-
-class StackBlocksKnowledge(TaskKnowledge):
-    instruction = sb.StackBlocks.instruction
-
-    def __init__(self) -> None:
-        self.classes = [ColourClass(n, _rgb(rgba)) for n, rgba in sb.BLOCKS]
-
-    def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
-        """The tower grows from the first block; a block is on it if, seen at that level, it sits above it.
-
-        From above, a stacked block hides most of the one below, so the base's own sighting is trusted
-        only while mostly visible; otherwise the block seen at the next level marks the tower.
-        """
-        names = [n for n, _ in sb.BLOCKS]
-        e = sb.BLOCK
-        base = names[0]
-        # The base's own estimate is trusted only from a mostly visible blob: under a stacked block
-        # (seen from above) only a sliver of it shows, whose centroid is centimetres off.
-        tower: XY | None = None
-        loose: XY | None = None  # an untrusted estimate, good enough to tell "near" from "elsewhere"
-        if base in seen.uv:
-            loose = _bp(camera, seen.uv[base], e / 2)
-            if seen.count.get(base, 0) >= FULL_BLOCK_PX * seen.scale**2:
-                tower = loose
-        out: list[tuple[str, Intent | None, bool]] = []
-        stacked = True
-        for level, name in enumerate(names[1:], start=1):
-            if name not in seen.uv:
-                out.append((name, None, False))
-                stacked = False
-                continue
-            on_tower = _bp(camera, seen.uv[name], e / 2 + level * e)
-            if tower is not None:
-                done = stacked and _near(on_tower, tower, 0.025)
-            elif loose is not None:  # the level below shows a sliver: this block sits on it if near it
-                done = stacked and _near(on_tower, loose, 0.045)
-            else:  # the base was never seen at all: only a block standing on it hides it completely
-                done = stacked and level == 1
-            intent = None
-            goal_xy = tower if tower is not None else loose
-            if goal_xy is not None:
-                xy = _bp(camera, seen.uv[name], e / 2)
-                goal = (float(goal_xy[0]), float(goal_xy[1]))
-                intent = Intent(name, (float(xy[0]), float(xy[1]), GRASP_Z), goal, GRASP_Z + level * e + 0.006)
-            out.append((name, intent, done))
-            if done:
-                tower = loose = on_tower
-            else:
-                stacked = False
-        return out
-
-
-class StackBowlsKnowledge(TaskKnowledge):
-    instruction = sw.StackBowls.instruction
-
-    def __init__(self) -> None:
-        self.classes = [ColourClass(n, _rgb(rgba)) for n, _, _, _, rgba, _ in sw.BOWLS]
-
-    @staticmethod
-    def grasp_height(index: int) -> float:
-        """TCP height above the bowl's underside for pinching the lip (fingertips just above its bottom)."""
-        _, _, _, h, _, _ = sw.BOWLS[index]
-        return h - sw.LIP + sw.WALL / 2 + 0.004 + 0.018  # 0.018: fingertips below the TCP
-
-    @staticmethod
-    def rim_radius(index: int) -> float:
-        return sw.BOWLS[index][2]  # the lip stands at the top radius
-
-    def progress(self, seen: Sightings, camera: CameraModel) -> list[tuple[str, Intent | None, bool]]:
-        """Bowls go onto the fixed stacking mark, so each is judged against the mark itself.
-
-        A bowl nested at the mark implies every bigger bowl is under it: that catches the large bowl
-        whose visible ring, half hidden by a gripper, would otherwise look off the mark.
-        """
-        mark = np.asarray(sw.STACK_XY, dtype=np.float64)
-        nested: list[XY | None] = []
-        for k, (name, _, _, h, _, _) in enumerate(sw.BOWLS):
-            uv = seen.uv.get(name)
-            nested.append(None if uv is None else _bp(camera, uv, sw.nested_base_height(k) + h / 2))
-        at_mark = [p is not None and _near(p, mark, 0.025) for p in nested]
-        out: list[tuple[str, Intent | None, bool]] = []
-        stacked = True
-        target: XY | None = mark
-        for k, (name, _, _, h, _, _) in enumerate(sw.BOWLS):
-            done = stacked and any(at_mark[k:])
-            uv = seen.uv.get(name)
-            intent = None
-            if uv is not None and target is not None:
-                xy = _bp(camera, uv, h / 2)
-                goal = (float(target[0]), float(target[1]))
-                intent = Intent(name, (float(xy[0]), float(xy[1]), self.grasp_height(k)), goal, 0.0)
-            out.append((name, intent, done))
-            stacked = done
-            # The next bowl goes into this one: aim at where it is seen, else at the mark.
-            here = nested[k]
-            target = (here if here is not None and at_mark[k] else mark) if done else None
-        return out
-
     def rim_grasp(
-        self, index: int, centre: XY, towards: XY
+        self, obj: str, centre: XY, towards: XY
     ) -> tuple[tuple[float, float, float], float, tuple[float, float]]:
-        """Grasp point on the rim facing ``towards`` (the arm), the yaw and the held centre offset."""
+        """Grasp point on a container's rim facing ``towards`` (the arm), the yaw and the held centre offset."""
+        g = self.geometry(obj).grasp
         d = np.asarray(towards, dtype=np.float64) - centre
         d /= max(float(np.linalg.norm(d)), 1e-9)
-        r = self.rim_radius(index)
+        r = g.radius
         p = centre + r * d
         yaw = math.atan2(float(d[0]), float(-d[1]))  # tool y (closing axis) along the radius
-        return (float(p[0]), float(p[1]), self.grasp_height(index)), yaw, (float(-r * d[0]), float(-r * d[1]))
+        return (float(p[0]), float(p[1]), g.height), yaw, (float(-r * d[0]), float(-r * d[1]))
 
 
-KNOWLEDGE: Mapping[str, type[TaskKnowledge]] = {
-    sc.SortCubes.name: SortCubesKnowledge,
-    sw.StackBowls.name: StackBowlsKnowledge,
-    sb.StackBlocks.name: StackBlocksKnowledge,
-}
+def knowledge_for(task: Task | str) -> TaskKnowledge:
+    """The knowledge of a task (a loaded task, a packaged task's name or a task file's path)."""
+    return TaskKnowledge(load_task(task))
 
 
 def knowledge_for_instruction(instruction: str) -> TaskKnowledge:
-    """The task whose instruction this is (case and surrounding space ignored)."""
+    """The packaged task whose instruction this is (case and surrounding space ignored)."""
+    from simrig.tasks import packaged_tasks
+
     want = instruction.strip().lower()
-    for cls in KNOWLEDGE.values():
-        if cls.instruction.strip().lower() == want:
-            return cls()
-    known = "; ".join(repr(c.instruction) for c in KNOWLEDGE.values())
-    raise ValueError(f"instruction: the scripted policies know {known}; got {instruction!r}")
+    for name in packaged_tasks():
+        task = load_task(name)
+        if task.instruction.strip().lower() == want:
+            return TaskKnowledge(task)
+    known = "; ".join(repr(load_task(n).instruction) for n in packaged_tasks())
+    raise ValueError(f"instruction: the scripted policies know the packaged tasks {known}; got {instruction!r}")

@@ -20,23 +20,23 @@ in the last clear view; call
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hw_drivers.sim.tasks.stack_bowls import BOWLS, nested_base_height
-from hw_drivers.sim.tasks.stack_bowls import WALL as BOWL_WALL
 from pilworld.config.rig import RigConfig
 from pilworld.policies.scripted.knowledge import (
     Intent,
     Sightings,
-    StackBowlsKnowledge,
     TaskKnowledge,
+    knowledge_for,
     knowledge_for_instruction,
 )
 from pilworld.policies.scripted.motion import ArmPlanner, Waypoint, nearest_equivalent_yaw, tcp_yaw
 from pilworld.policies.scripted.skill import Checkpoint, checkpoint, errors_for
 from pilworld.types import ARM_LAYOUT, HEAD_VIEW, STATE_DIM, Observation
+from simrig.tasks import Task
 
 APPROACH_Z = 0.12  # TCP height for moving over objects [m]
 NOMINAL_SPEED = 0.6  # peak Cartesian TCP speed of the best checkpoint [m/s]
@@ -45,8 +45,8 @@ FINGERTIP_BELOW_TCP = 0.018  # the fingertips reach this far below the TCP [m]
 
 
 def _home() -> NDArray[np.float64]:
-    # The simulated rig's home pose (hw_drivers.sim.robot.HOME_Q14), as a policy's "rest" prior.
-    from hw_drivers.sim.poses import HOME_Q14
+    # The simulated rig's home pose (simrig.robot.HOME_Q14), as a policy's "rest" prior.
+    from simrig.poses import HOME_Q14
 
     return HOME_Q14.copy()
 
@@ -55,7 +55,13 @@ class ScriptedPolicy:
     """A scripted checkpoint; ``infer(observation, instruction) -> float32[horizon, 14]``."""
 
     def __init__(
-        self, rig: RigConfig, ckpt: str | Checkpoint = "scripted_step_30k", *, seed: int = 0, horizon: int = 50
+        self,
+        rig: RigConfig,
+        ckpt: str | Checkpoint = "scripted_step_30k",
+        *,
+        seed: int = 0,
+        horizon: int = 50,
+        task: Task | str | Path | None = None,
     ) -> None:
         self.rig = rig
         self.checkpoint = checkpoint(ckpt) if isinstance(ckpt, str) else ckpt
@@ -75,6 +81,9 @@ class ScriptedPolicy:
             T = self.planners[side].tcp(self.home[arm])
             self._home_tcp[side] = ((float(T[0, 3]), float(T[1, 3]), float(T[2, 3])), tcp_yaw(T))
         self._knowledge: dict[str, TaskKnowledge] = {}
+        # A stand-in for a VLA trained on one task: given its task file, it acts on it whatever the
+        # instruction's wording; without one it recognises a packaged task by its instruction.
+        self._task: TaskKnowledge | None = None if task is None else knowledge_for(task)
         self.seed = seed
         self.sightings = Sightings(image_width=self.camera.width)
         self._grasped: str | None = None  # the object this policy last went to grasp
@@ -93,6 +102,8 @@ class ScriptedPolicy:
         self._done = {}
 
     def knowledge(self, instruction: str) -> TaskKnowledge:
+        if self._task is not None:
+            return self._task
         if instruction not in self._knowledge:
             self._knowledge[instruction] = knowledge_for_instruction(instruction)
         return self._knowledge[instruction]
@@ -171,10 +182,12 @@ class ScriptedPolicy:
     def _held_object(self, know: TaskKnowledge, gripper_uv: NDArray[np.float64]) -> str | None:
         """The unfinished object whose blob lies nearest the holding gripper (at ``gripper_uv``) in the image."""
         best, best_d = None, math.inf
-        done = {name for name, _, ok in know.progress(self.sightings, self.camera) if ok}
+        progress = know.progress(self.sightings, self.camera)
+        done = {name for name, _, ok in progress if ok}
+        movable = {name for name, _, _ in progress}
         for c in know.classes:
             blob = self.sightings.last.get(c.name)
-            if blob is None or c.name in done:
+            if blob is None or c.name in done or c.name not in movable:
                 continue
             d = float(np.hypot(*(np.asarray(blob.centroid_uv) - gripper_uv)))
             if d < best_d:
@@ -227,21 +240,26 @@ class ScriptedPolicy:
         gx, gy = gx + err.grasp_offset[0], gy + err.grasp_offset[1]
         offset = np.zeros(2)
         release_z = intent.release_z
-        if isinstance(know, StackBowlsKnowledge):
-            index = [c.name for c in know.classes].index(intent.obj)
+        grasp = know.geometry(intent.obj).grasp
+        member = know.member(intent.obj)
+        if grasp.kind == "rim" and member is not None:
             base_xy = getattr(self.rig.kinematics, side).T_rig_base[:2, 3]
-            (gx, gy, gz), yaw, off = know.rim_grasp(index, np.array([gx, gy]), base_xy)
+            (gx, gy, gz), yaw, off = know.rim_grasp(intent.obj, np.array([gx, gy]), base_xy)
             offset = np.asarray(off)
-            release_z = nested_base_height(index) + know.grasp_height(index) + 0.01
-            if index > 0:
-                # Open with the fingertips above the lower bowl's rim: opened inside it, the outer
-                # finger would wedge against its wall and lift the whole stack on the way up.
-                below_top = nested_base_height(index - 1) + BOWLS[index - 1][3] + BOWL_WALL
+            release_z = member.rest + grasp.height + 0.01
+            if member.kind != "region":
+                # Open with the fingertips above the rim below: opened inside it, the outer finger would
+                # wedge against its wall and lift the whole stack on the way up.
+                below_top = know.task.done_heights()[member.target] + know.geometry(member.target).height
                 release_z = max(release_z, below_top + FINGERTIP_BELOW_TCP + 0.008)
             if carrying:
-                # Keep the yaw we hold it with; the bowl's centre lies along the closing axis.
+                # Keep the yaw we hold it with; the container's centre lies along the closing axis.
                 yaw = yaw_now
-                offset = self._held_offset(know, intent, index, pos, yaw_now)
+                offset = self._held_offset(know, intent, pos, yaw_now)
+        elif grasp.symmetry == math.pi:
+            # An oblong object: close across its short side, whatever its yaw on the table.
+            long_yaw = self._seen_long_axis(know, intent.obj, grasp.long_axis_yaw)
+            yaw = nearest_equivalent_yaw(long_yaw, yaw_now, math.pi) if not carrying else yaw_now
         else:
             yaw = nearest_equivalent_yaw(0.0, yaw_now, math.pi / 2)
         yaw = nearest_equivalent_yaw(yaw, yaw_now, math.pi)
@@ -284,14 +302,30 @@ class ScriptedPolicy:
         return planner.plan(q, grip if aligned else 1.0, wps + carry, self.horizon)
 
     def _held_offset(
-        self, know: StackBowlsKnowledge, intent: Intent, index: int, tcp: NDArray[np.float64], yaw: float
+        self, know: TaskKnowledge, intent: Intent, tcp: NDArray[np.float64], yaw: float
     ) -> NDArray[np.float64]:
-        """The held bowl's centre relative to the TCP: ±r along the closing axis, the sign from the image."""
-        r = know.rim_radius(index)
+        """The held container's centre relative to the TCP: ±r along the closing axis, the sign from the image."""
+        grasp = know.geometry(intent.obj).grasp
+        r = grasp.radius
         axis = np.array([math.sin(yaw), -math.cos(yaw)])
-        base_z = tcp[2] - know.grasp_height(index)  # the held bowl's underside
+        base_z = tcp[2] - grasp.height  # the held container's underside
         seen = know.held_xy(self.sightings, self.camera, intent.obj, base_z + 0.02)
         cands = [r * axis, -r * axis]
         if seen is None or not np.all(np.isfinite(seen)):
             return cands[0]
         return min(cands, key=lambda c: float(np.hypot(*(tcp[:2] + c - seen))))
+
+    def _seen_long_axis(self, know: TaskKnowledge, obj: str, default: float) -> float:
+        """The yaw of an oblong object's long side on the table, from its blob's spread (back-projected)."""
+        blob = self.sightings.last.get(obj)
+        if blob is None or blob.n_pixels < 6:
+            return default
+        g = know.geometry(obj)
+        pts, ok = self.camera.backproject_to_plane(blob.pixels_uv.astype(np.float64), g.bottom + g.mid)
+        xy = np.asarray(pts, dtype=np.float64)[np.asarray(ok, dtype=bool)][:, :2]
+        if len(xy) < 6:
+            return default
+        cov = np.cov((xy - xy.mean(axis=0)).T)
+        w, v = np.linalg.eigh(cov)
+        major = v[:, int(np.argmax(w))]
+        return math.atan2(float(major[1]), float(major[0]))

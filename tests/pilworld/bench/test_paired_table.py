@@ -13,7 +13,6 @@ from typing import Any
 
 import pytest
 
-from hw_drivers.sim.tasks import TASK_NAMES
 from pilworld.bench import paired as bench
 from pilworld.bench.charts import paired_table_chart
 from pilworld.bench.paired import (
@@ -32,6 +31,7 @@ from pilworld.data.reader import EpisodeStore
 from pilworld.paired.runner import TIMINGS_FILE
 from pilworld.policies.registry import policy_names
 from pilworld.world_model import V1_CHECKPOINT
+from simrig.tasks import TASK_NAMES
 from tests.pilworld.metrics.synthetic import ROUNDS, K, SynthPair, write_paired
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"

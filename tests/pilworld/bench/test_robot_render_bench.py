@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.bench.robot_render import (
     JOINT_SPAN,
     TABLE_CLEARANCE,
@@ -23,6 +22,7 @@ from pilworld.bench.robot_render import (
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.robot_model import PART_IDS, RobotModel
 from pilworld.types import ARM_LAYOUT
+from simrig.poses import HOME_Q14
 
 SIM_RIG = Path(__file__).resolve().parents[3] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 

@@ -20,7 +20,6 @@ import torch
 import pilworld.bench.chunk_latency as cl
 import pilworld.bench.speed_accuracy as sa
 import pilworld.bench.world_model as wm
-from hw_drivers.sim.tasks import TASK_NAMES
 from pilworld.bench.charts import speed_accuracy_chart
 from pilworld.bench.paired import QUICK_CHECKPOINTS, protocol
 from pilworld.bench.results_tables import speed_accuracy_tables
@@ -54,6 +53,7 @@ from pilworld.world_model.composite.checkpoint import save_composite
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
 from pilworld.world_model.model import PilWorldModel
 from pilworld.world_model.resized import ResizedWorldModel
+from simrig.tasks import TASK_NAMES
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
 PNG = b"\x89PNG\r\n\x1a\n"

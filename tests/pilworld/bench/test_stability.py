@@ -274,9 +274,9 @@ def test_perturbed_rig_writes_the_wrong_calibration(tmp_path: Path) -> None:
 @pytest.fixture(scope="module")
 def sim_start() -> tuple[Start, NDArray[np.float32]]:
     """One start of sort_cubes (layout 7,000,500, subtask 0) and the 30k policy's chunk from it."""
-    from hw_drivers.sim.tasks import make_task
     from pilworld.paired.stations import SimStation
     from pilworld.policies.registry import make_policy
+    from simrig.tasks import make_task
 
     spec = ChunkSpec(rounds=1)
     rig = RigConfig.load(SIM)

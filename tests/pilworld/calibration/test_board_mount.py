@@ -15,15 +15,15 @@ import pytest
 
 from calib.board import ChArUcoBoard
 from calib.detect import BoardDetector
-from hw_drivers.sim.board_mount import BOARD_TEXTURE_FILE, BoardMount
-from hw_drivers.sim.poses import HOME_Q14
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.scene import build_mjcf, compile_scene
 from pilworld.calibration.collect import collect_views
 from pilworld.calibration.planner import PlannerSettings, plan_board_poses
 from pilworld.calibration.sim_handeye import sim_calibration_camera
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT
+from simrig.board_mount import BOARD_TEXTURE_FILE, BoardMount
+from simrig.poses import HOME_Q14
+from simrig.robot import SimRobot
+from simrig.scene import build_mjcf, compile_scene
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

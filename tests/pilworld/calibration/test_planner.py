@@ -11,12 +11,12 @@ import pytest
 from calib.board import ChArUcoBoard
 from calib.handeye import DegenerateMotionError
 from calib.rotations import rotation_angle
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.calibration.occlusion import arm_capsules, segment_distances
 from pilworld.calibration.planner import PlannerSettings, PosePlan, plan_board_poses
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT
+from simrig.board_mount import BoardMount
+from simrig.poses import HOME_Q14
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

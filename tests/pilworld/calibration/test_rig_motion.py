@@ -12,11 +12,11 @@ import pytest
 from calib.board import ChArUcoBoard
 from hw_drivers.errors import SafetyViolationError
 from hw_drivers.safety import SafetyFilter, dual_arm_speed_caps
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.calibration.recording import RecordedView, Recording
 from pilworld.calibration.rig_collection import ArmPlan, CollectionPlan, ViewStore
 from pilworld.calibration.rig_motion import MoveSettings, move_duration, paced_move, path_problem
 from pilworld.config.rig import RigConfig
+from simrig.poses import HOME_Q14
 
 ROOT = Path(__file__).resolve().parents[3]
 RIG = RigConfig.load(ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml")

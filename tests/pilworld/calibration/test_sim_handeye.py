@@ -16,8 +16,6 @@ import yaml
 from calib.camera_model import CameraModel
 from calib.handeye import DegenerateMotionError
 from calib.rotations import pose_difference, rigid, rotation_exp
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.robot import SimRobot
 from pilworld.calibration.check import check_views, gripper_reprojection_errors
 from pilworld.calibration.collect import move_to
 from pilworld.calibration.recording import RecordedView, Recording
@@ -32,6 +30,8 @@ from pilworld.calibration.solve import solve_recording
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.types import LEFT_ARM
+from simrig.board_mount import BoardMount
+from simrig.robot import SimRobot
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

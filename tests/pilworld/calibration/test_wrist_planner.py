@@ -9,8 +9,6 @@ import pytest
 
 from calib.board import ChArUcoBoard
 from calib.handeye import DegenerateMotionError
-from hw_drivers.sim.poses import HOME_Q14
-from hw_drivers.sim.table_board import TableBoard
 from pilworld.calibration.wrist_planner import (
     WristPlannerSettings,
     _gripper_mask,
@@ -19,6 +17,8 @@ from pilworld.calibration.wrist_planner import (
 )
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
+from simrig.poses import HOME_Q14
+from simrig.table_board import TableBoard
 
 ROOT = Path(__file__).resolve().parents[3]
 RIG = RigConfig.load(ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml")

@@ -12,8 +12,6 @@ from calib.board import ChArUcoBoard
 from calib.detect import BoardDetector
 from calib.handeye import DegenerateMotionError
 from calib.rotations import pose_difference
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.table_board import TableBoard
 from pilworld.calibration.recording import Recording
 from pilworld.calibration.wrist_sim import (
     WristTruth,
@@ -26,6 +24,8 @@ from pilworld.calibration.wrist_sim import (
 from pilworld.calibration.wrist_solve import calibrate_wrist
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
+from simrig.robot import SimRobot
+from simrig.table_board import TableBoard
 
 ROOT = Path(__file__).resolve().parents[3]
 RIG = RigConfig.load(ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml")

@@ -18,7 +18,7 @@ SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
 
 @pytest.fixture
 def chunk_file(tmp_path: Path) -> Path:
-    from hw_drivers.sim.poses import HOME_Q14 as SIM_START
+    from simrig.poses import HOME_Q14 as SIM_START
 
     path = tmp_path / "chunk.npy"
     np.save(path, starting_at(reach_and_grasp_chunk(), SIM_START))

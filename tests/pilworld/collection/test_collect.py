@@ -15,8 +15,6 @@ import numpy as np
 import pytest
 
 import pilworld.collection.collect as collect_mod
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.tasks import TASK_NAMES
 from pilworld.cli.main import main
 from pilworld.collection.collect import JUDGE_ID, collect, summarize
 from pilworld.collection.rollout import SubtaskRecording, run_subtask
@@ -24,6 +22,8 @@ from pilworld.data.outcomes import read_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPolicy
 from pilworld.types import ChunkSpec
+from simrig.robot import SimRobot
+from simrig.tasks import TASK_NAMES
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

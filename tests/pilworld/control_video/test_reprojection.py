@@ -9,7 +9,6 @@ import pytest
 from numpy.typing import NDArray
 
 from calib.camera_model import CameraModel
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.cameras import RigCameras
 from pilworld.control_video.reprojection import (
@@ -20,6 +19,7 @@ from pilworld.control_video.reprojection import (
     plane_homography,
     warp_through_plane,
 )
+from simrig.poses import HOME_Q14
 
 RIG = Path(__file__).resolve().parents[3] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 SIZE = 64

@@ -10,14 +10,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hw_drivers.sim.gl import mujoco
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.bench.robot_render import sim_robot_parts
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.cameras import RigCameras, ViewCamera
 from pilworld.control_video.robot_model import HIDDEN_GROUP, PART_IDS, RobotModel
 from pilworld.control_video.robot_render import make_robot_renderer
 from pilworld.control_video.robot_render_mujoco import MujocoRobotRenderer
+from simrig.gl import mujoco
+from simrig.poses import HOME_Q14
 
 RIGS = Path(__file__).resolve().parents[3] / "configs" / "rig"
 SIM_RIG, REAL_RIG = RIGS / "sim_dual_ur5e.yaml", RIGS / "real_dual_ur5e.yaml"

@@ -170,8 +170,8 @@ def test_frozen_model_reproduces_the_start(gamma: ControlVideo) -> None:
 
 def test_safety_filter_shapes_the_commands_like_on_the_robot(gamma: ControlVideo) -> None:
     """A chunk that jumps is slowed down by the robot's filter; the imagined branch executes the same commands."""
-    from hw_drivers.sim.robot import SimRobot
     from pilworld.envs import SafetyFilter
+    from simrig.robot import SimRobot
 
     with SimRobot(SIM, "sort_cubes") as robot:
         spec = robot.spec

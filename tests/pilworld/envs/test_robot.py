@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from hw_drivers.errors import SafetyViolationError, StaleObservationError
-from hw_drivers.sim.robot import SimRobot
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs import EnvError, ImaginedEnv, RobotEnv
@@ -19,6 +18,7 @@ from pilworld.rollout import closed_loop
 from pilworld.types import ChunkSpec, Observation, Segment
 from pilworld.world_model import DEFAULT_CHECKPOINT
 from pilworld.world_model.checkpoint import load_world_model
+from simrig.robot import SimRobot
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
 SPEC = ChunkSpec(rounds=2)

@@ -31,11 +31,11 @@ STOP_TIMEOUT_S = 60
 @pytest.fixture(scope="module")
 def starts(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two stored starts of ``sort_cubes``, recorded on the simulated rig."""
-    from hw_drivers.sim.tasks import make_task
     from pilworld.collection.collect import dataset_spec
     from pilworld.paired.stations import SimStation
     from pilworld.starts.store import StartsWriter
     from pilworld.types import Subtask
+    from simrig.tasks import make_task
 
     root = tmp_path_factory.mktemp("starts")
     instruction = make_task("sort_cubes").instruction

@@ -115,10 +115,10 @@ def test_acceptance_on_fresh_seeds(tmp_path: Path) -> None:
     Seeds 4,000,000+ are reserved for this measurement (never used to tune the detector):
     ``pilworld sim collect --task all --checkpoint all --episodes 2 --seed 4000000`` — 80 episodes.
     """
-    from hw_drivers.sim.tasks import TASK_NAMES
     from pilworld.bench.hallucination import run_hallucination_bench
     from pilworld.collection.collect import collect
     from pilworld.policies.scripted import CHECKPOINTS
+    from simrig.tasks import TASK_NAMES
 
     root = tmp_path / "halluc_val"
     collect(

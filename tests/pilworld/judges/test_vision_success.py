@@ -146,7 +146,7 @@ def test_reads_no_privileged_state(
     episodes: list[tuple[str, Episode, bool, str]], rig: RigConfig, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """An Episode alone: no simulator call, no stored extras, the task named by the context or the instruction."""
-    from hw_drivers.sim.robot import SimRobot
+    from simrig.robot import SimRobot
 
     def forbidden(*_: Any, **__: Any) -> Any:
         raise AssertionError("the image-only judge read simulator state")

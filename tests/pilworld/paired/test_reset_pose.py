@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.data.reader import EpisodeStore
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.paired.operator import UnattendedOperator
@@ -21,6 +20,7 @@ from pilworld.paired.policy_metadata import METADATA_FILE, reset_pose
 from pilworld.policies.base import PolicyError
 from pilworld.starts.sources import PAIRED_STARTS
 from pilworld.types import ChunkSpec
+from simrig.poses import HOME_Q14
 from tests.pilworld.cli.faulty_server import FaultyServer, free_port
 
 FAKE = "configs/rig/fake_dual_ur5e.yaml"

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.tasks import TASK_NAMES, TASKS
 from pilworld.collection.rollout import run_subtask
 from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPolicy, checkpoint
 from pilworld.policies.scripted.skill import errors_for
 from pilworld.types import HEAD_VIEW, LEFT_ARM, RIGHT_ARM, ChunkSpec, Observation
+from simrig.robot import SimRobot
+from simrig.tasks import TASK_NAMES, TASKS
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
@@ -202,7 +202,7 @@ def test_scripted_policies_cannot_reach_the_simulator() -> None:
     """Observation-only by construction: no policy module imports MuJoCo or the simulated robot."""
     import ast
 
-    forbidden = ("mujoco", "hw_drivers.sim.robot", "hw_drivers.sim.gl", "hw_drivers.sim.scene")
+    forbidden = ("mujoco", "simrig.robot", "simrig.gl", "simrig.scene")
     package = Path(__file__).resolve().parents[3] / "pilworld" / "policies" / "scripted"
     files = sorted(package.glob("*.py"))
     assert files

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT, ChunkSpec
 from pilworld.world_model.composite.layers import HOLD_MAX, LayerBuilder, hold_spans, steps_from_stride
+from simrig.poses import HOME_Q14
 
 SPEC = ChunkSpec()
 LEFT_ARM, LEFT_GRIP = ARM_LAYOUT["left"]

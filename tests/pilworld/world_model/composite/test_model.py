@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 import torch
 
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs import ImaginedEnv
@@ -20,6 +19,7 @@ from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.checkpoint import is_composite, load_composite, save_composite
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
 from pilworld.world_model.composite.net import CANDIDATES
+from simrig.poses import HOME_Q14
 
 SPEC = ChunkSpec()
 LEFT_ARM, LEFT_GRIP = ARM_LAYOUT["left"]

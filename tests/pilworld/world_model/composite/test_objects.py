@@ -10,8 +10,6 @@ from typing import Any, cast
 import numpy as np
 import pytest
 
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.tasks import stack_bowls as sw
 from pilworld.config.rig import RigConfig
 from pilworld.judges.vision_fit import BowlShape, BoxShape, Pose2D
 from pilworld.judges.vision_tasks import task_spec
@@ -25,6 +23,8 @@ from pilworld.world_model.composite.objects import (
     measured_grip,
     support_top,
 )
+from simrig.robot import SimRobot
+from simrig.tasks import stack_bowls as sw
 
 ROOT = Path(__file__).resolve().parents[4]
 SIM_RIG = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

@@ -13,8 +13,6 @@ import numpy as np
 import pytest
 
 from hw_drivers.safety import SafetyFilter
-from hw_drivers.sim.robot import SimRobot
-from hw_drivers.sim.tasks import sort_cubes as sc
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs import ImaginedEnv
@@ -28,6 +26,8 @@ from pilworld.world_model import DEFAULT_CHECKPOINT
 from pilworld.world_model.base import PredictRequest
 from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.model import CompositeWorldModel
+from simrig.robot import SimRobot
+from simrig.tasks import sort_cubes as sc
 
 ROOT = Path(__file__).resolve().parents[4]
 SIM_RIG = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

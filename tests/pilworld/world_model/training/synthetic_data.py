@@ -12,13 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from hw_drivers.sim.poses import HOME_Q14
 from pilworld.collection.collect import JUDGE_ID
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.spec import DatasetSpec
 from pilworld.data.writer import EpisodeWriter
 from pilworld.types import DEFAULT_VIEWS
+from simrig.poses import HOME_Q14
 
 ROOT = Path(__file__).resolve().parents[4]
 SIM_RIG = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

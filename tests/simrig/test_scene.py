@@ -17,12 +17,12 @@ import pytest
 import yaml
 
 from calib.camera_model import CameraModel
-from hw_drivers.sim.gl import make_renderer, mujoco
-from hw_drivers.sim.objects import GeomSpec, ObjectSpec, bowl_object, box_object
-from hw_drivers.sim.scene import build_mjcf, compile_scene
-from hw_drivers.sim.tasks import TASKS
 from pilworld.config.rig import RigConfig
 from pilworld.types import LEFT_ARM, RIGHT_ARM
+from simrig.gl import make_renderer, mujoco
+from simrig.objects import GeomSpec, ObjectSpec, bowl_object, box_object
+from simrig.scene import build_mjcf, compile_scene
+from simrig.tasks import TASKS
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from calib.board import ChArUcoBoard
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.scene import build_mjcf, compile_scene
-from hw_drivers.sim.table_board import TableBoard
 from pilworld.config.rig import RigConfig
+from simrig.board_mount import BoardMount
+from simrig.scene import build_mjcf, compile_scene
+from simrig.table_board import TableBoard
 
 ROOT = Path(__file__).resolve().parents[3]
 RIG = RigConfig.load(ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml")

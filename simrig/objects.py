@@ -18,12 +18,26 @@ Rgba = tuple[float, float, float, float]
 class GeomSpec:
     """One MuJoCo geom in its body's frame (``size`` as MJCF: half-sizes for a box)."""
 
-    type: str  # box | cylinder | sphere | capsule
+    type: str  # box | cylinder | sphere | capsule | mesh
     size: tuple[float, ...]
     rgba: Rgba
     pos: Vec3 = (0.0, 0.0, 0.0)
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)  # (w, x, y, z)
     collide: bool = True
+    material: str | None = None  # a material asset (a texture), see ``Assets``
+    mesh: str | None = None  # the mesh asset of a ``mesh`` geom
+    volume: float | None = None  # of a mesh geom (its convex hull) [m³]; primitives compute their own
+
+
+@dataclass(frozen=True)
+class Assets:
+    """MJCF ``<asset>`` lines (textures, materials, meshes) and the bytes of the files they name."""
+
+    xml: tuple[str, ...] = ()
+    files: tuple[tuple[str, bytes], ...] = ()
+
+    def __add__(self, other: Assets) -> Assets:
+        return Assets(self.xml + other.xml, self.files + other.files)
 
 
 @dataclass(frozen=True)
@@ -38,6 +52,7 @@ class ObjectSpec:
     bottom: float = 0.0
     top: float = 0.0
     extra: dict[str, float] = field(default_factory=dict)  # task-specific dimensions (radius, size …)
+    assets: Assets = Assets()
 
 
 @dataclass(frozen=True)
@@ -47,6 +62,8 @@ class FixtureSpec:
     name: str
     geoms: tuple[GeomSpec, ...]
     pos: Vec3 = (0.0, 0.0, 0.0)
+    quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    assets: Assets = Assets()
 
 
 def box_object(name: str, half: Vec3, rgba: Rgba, mass: float, friction: float = 1.0) -> ObjectSpec:
@@ -62,12 +79,12 @@ def box_object(name: str, half: Vec3, rgba: Rgba, mass: float, friction: float =
     )
 
 
-def _quat_axis_angle(axis: Vec3, angle: float) -> tuple[float, float, float, float]:
+def quat_axis_angle(axis: Vec3, angle: float) -> tuple[float, float, float, float]:
     s = math.sin(angle / 2.0)
     return (math.cos(angle / 2.0), axis[0] * s, axis[1] * s, axis[2] * s)
 
 
-def _quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:
+def quat_mul(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:
     aw, ax, ay, az = a
     bw, bx, by, bz = b
     return (
@@ -99,8 +116,8 @@ def bowl_object(
     edges and let the bowl swing in the hand. Plates are slightly wider than the polygon edge so
     neighbouring plates overlap and the wall has no gaps a finger could slip through.
     """
-    if not 0 < bottom_radius < top_radius:
-        raise ValueError(f"{name}: need 0 < bottom_radius < top_radius, got {bottom_radius}, {top_radius}")
+    if not 0 < bottom_radius <= top_radius:
+        raise ValueError(f"{name}: need 0 < bottom_radius <= top_radius, got {bottom_radius}, {top_radius}")
     if not 0 <= lip < height:
         raise ValueError(f"{name}: need 0 <= lip < height, got lip={lip}, height={height}")
     geoms = [GeomSpec("cylinder", (bottom_radius, wall / 2), rgba, pos=(0.0, 0.0, wall / 2))]
@@ -114,8 +131,8 @@ def bowl_object(
         phi = 2.0 * math.pi * i / segments
         # Plate frame: z along the slant, x radial, y tangential; yaw by phi, then tilt about the
         # tangential axis so the top leans outwards (a positive turn about +y moves +z towards +x).
-        q_yaw = _quat_axis_angle((0.0, 0.0, 1.0), phi)
-        quat = _quat_mul(q_yaw, _quat_axis_angle((0.0, 1.0, 0.0), flare))
+        q_yaw = quat_axis_angle((0.0, 0.0, 1.0), phi)
+        quat = quat_mul(q_yaw, quat_axis_angle((0.0, 1.0, 0.0), flare))
         c, s = math.cos(phi), math.sin(phi)
         pos = (mid_r * c, mid_r * s, body_h / 2.0 + wall / 2)
         geoms.append(GeomSpec("box", (wall / 2, half_width, slant / 2), rgba, pos=pos, quat=quat))

@@ -1,22 +1,14 @@
-"""What a simulated task is: objects and fixtures, a seeded layout, subtask goals and a privileged checker.
-
-Following dm_control, each concern is its own method: the scene content (:meth:`Task.objects`,
-:meth:`Task.fixtures`), the initial state (:meth:`Task.layout`), the state after earlier subtasks are
-done (:meth:`Task.completed_poses`), and success (:meth:`Task.in_place`). "Released" and "stable for a
-while" are checked by the simulator for every task alike (see ``SimRobot.check_subtask``).
-"""
+"""The small value types of a simulated task: an object's pose, a seeded layout, a placement verdict,
+and the point sampler the layouts use."""
 
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-
-from hw_drivers.sim.objects import FixtureSpec, ObjectSpec
 
 
 @dataclass(frozen=True)
@@ -56,42 +48,6 @@ class PlacementCheck:
 
     in_place: bool
     reason: str
-
-
-class Task(ABC):
-    """One simulated task; subclasses are small and registered by name in ``hw_drivers.sim.tasks``."""
-
-    name: str
-    instruction: str  # the paper's instruction, verbatim
-    num_subtasks: int
-
-    @abstractmethod
-    def objects(self) -> tuple[ObjectSpec, ...]:
-        """The free objects of the scene (their names are unique within the task)."""
-
-    def fixtures(self) -> tuple[FixtureSpec, ...]:
-        """Static decorations (slot outlines, a target mark)."""
-        return ()
-
-    @abstractmethod
-    def layout(self, seed: int) -> Layout:
-        """A random initial arrangement for ``seed`` (deterministic)."""
-
-    @abstractmethod
-    def subtask_object(self, index: int) -> str:
-        """The object moved in subtask ``index``."""
-
-    @abstractmethod
-    def completed_poses(self, layout: Layout, done: int) -> dict[str, ObjectPose]:
-        """Object poses once subtasks ``0 … done−1`` have succeeded (others as in ``layout``)."""
-
-    @abstractmethod
-    def in_place(self, layout: Layout, poses: Mapping[str, ObjectPose], index: int) -> PlacementCheck:
-        """Whether subtask ``index``'s object sits at its goal given current ``poses``."""
-
-    def check_index(self, index: int) -> None:
-        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < self.num_subtasks:
-            raise ValueError(f"subtask: {self.name} has subtasks 0..{self.num_subtasks - 1}, got {index!r}")
 
 
 def sample_positions(

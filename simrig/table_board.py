@@ -6,7 +6,7 @@ exact: ``T_rig_board`` (board-frame points → rig frame) is what :class:`TableB
 ("into the board", OpenCV's board frame) points down into the table; board x runs along ``yaw_deg`` from
 the rig's +x axis.
 
-Texture mapping as in :mod:`hw_drivers.sim.board_mount`: a mesh whose front-face vertices are the page
+Texture mapping as in :mod:`simrig.board_mount`: a mesh whose front-face vertices are the page
 corners, with explicit ``texcoord`` of the page image from :meth:`calib.board.ChArUcoBoard.render`, so a
 texel edge lies exactly at its board-frame position. The PNG reaches MuJoCo through the ``assets``
 mapping (:meth:`TableBoard.assets`), under a name of its own, so it can coexist with a gripper board.
@@ -23,9 +23,9 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
-from hw_drivers.sim.board_plate import board_texture_png, page_corners_board, plate_asset_xml
 from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_SIDES
+from simrig.board_plate import board_texture_png, page_corners_board, plate_asset_xml
 
 __all__ = ["TABLE_BOARD_TEXTURE_FILE", "TableBoard"]
 

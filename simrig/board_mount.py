@@ -30,9 +30,9 @@ import numpy as np
 import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
-from hw_drivers.sim.board_plate import board_texture_png, page_corners_board, plate_asset_xml
 from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_SIDES
+from simrig.board_plate import board_texture_png, page_corners_board, plate_asset_xml
 
 __all__ = ["BOARD_TEXTURE_FILE", "BoardMount"]
 

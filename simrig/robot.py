@@ -25,16 +25,16 @@ from numpy.typing import NDArray
 
 from hw_drivers.robot import DeviceNotConnectedError
 from hw_drivers.safety import dual_arm_speed_caps
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.gl import make_renderer, mujoco
-from hw_drivers.sim.hand_board import PARKED, HandBoard
-from hw_drivers.sim.poses import HOME_Q14
-from hw_drivers.sim.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, settings_for
-from hw_drivers.sim.table_board import TableBoard
-from hw_drivers.sim.tasks import Layout, ObjectPose, Task, make_task
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
+from simrig.board_mount import BoardMount
+from simrig.gl import make_renderer, mujoco
+from simrig.hand_board import PARKED, HandBoard
+from simrig.poses import HOME_Q14
+from simrig.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, scene_assets, settings_for
+from simrig.table_board import TableBoard
+from simrig.tasks import Layout, ObjectPose, Task, make_task
 
 DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 SETTLE_S = 0.5  # physics time given to a new layout before the lead-in
@@ -112,6 +112,7 @@ class SimRobot:
         for board in (self.board_mount, self.table_board, self.hand_board):
             if board is not None:
                 assets.update(board.assets())
+        assets.update(scene_assets(self.task.objects(), self.task.fixtures()).files)
         model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}", assets or None)
         self._model = model
         self._data = mujoco.MjData(model)
@@ -254,7 +255,7 @@ class SimRobot:
         self._require()
         if task is not None:
             new = make_task(task) if isinstance(task, str) else task
-            if new.name != self.task.name:
+            if new.digest != self.task.digest:
                 new.check_index(subtask)
                 self.disconnect()
                 self.task = new
@@ -411,11 +412,12 @@ class SimRobot:
                 return side
         return None
 
-    def check_subtask(self, index: int | None = None, settle_s: float = 1.0) -> SubtaskCheck:
+    def check_subtask(self, index: int | None = None, settle_s: float | None = None) -> SubtaskCheck:
         """Privileged success of a subtask now: in place, released, and still in place after settling.
 
         Settling runs on a copy of the physics state with the arms holding their last command, so the
-        episode itself is not changed.
+        episode itself is not changed; how long, and how far the object may move meanwhile, is the
+        subtask's ``settle`` in the task file (``settle_s`` overrides the time).
         """
         self._require()
         if index is None:
@@ -425,6 +427,8 @@ class SimRobot:
         self.task.check_index(index)
         assert self.layout is not None
         name = self.task.subtask_object(index)
+        settle = self.task.subtask(index).settle
+        settle_s = settle.seconds if settle_s is None else settle_s
         now = self.task.in_place(self.layout, self.object_poses(), index)
         holder = self.held_by(name)
         released = holder is None
@@ -438,7 +442,7 @@ class SimRobot:
         after_poses = self.object_poses(copy)
         later = self.task.in_place(self.layout, after_poses, index)
         moved = float(np.linalg.norm(after_poses[name].position - before))
-        stable = later.in_place and moved < 0.01
+        stable = later.in_place and moved < settle.max_motion
         success = now.in_place and released and stable
         if not now.in_place:
             reason = now.reason

@@ -9,10 +9,10 @@ import pytest
 
 from calib.board import ChArUcoBoard
 from calib.detect import BoardDetector
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.hand_board import HandBoard, presentation_poses
-from hw_drivers.sim.robot import SimRobot
 from pilworld.config.rig import RigConfig
+from simrig.board_mount import BoardMount
+from simrig.hand_board import HandBoard, presentation_poses
+from simrig.robot import SimRobot
 
 ROOT = Path(__file__).resolve().parents[3]
 RIG = RigConfig.load(ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml")

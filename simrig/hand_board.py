@@ -2,9 +2,9 @@
 
 Intrinsics are calibrated from a board waved in front of the camera, with no robot involved. On the fake
 rig the person is simulated: :class:`HandBoard` adds a visual-only plate on a MuJoCo *mocap* body, which
-:meth:`hw_drivers.sim.robot.SimRobot.hold_board` places anywhere (or parks out of sight) without touching the
+:meth:`simrig.robot.SimRobot.hold_board` places anywhere (or parks out of sight) without touching the
 physics. The plate's mesh is the board frame itself (its front-face vertices are the page corners, with
-explicit texture coordinates, as in :mod:`hw_drivers.sim.board_mount`), so a board pose ``T_rig_board`` set
+explicit texture coordinates, as in :mod:`simrig.board_mount`), so a board pose ``T_rig_board`` set
 on the mocap body puts every corner exactly where the board model says.
 
 :func:`presentation_poses` plans what a careful person shows a camera: the board at several distances,
@@ -24,7 +24,7 @@ import numpy.typing as npt
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.rotations import rotation_exp
-from hw_drivers.sim.board_plate import board_texture_png, plate_asset_xml
+from simrig.board_plate import board_texture_png, plate_asset_xml
 
 __all__ = ["HAND_BOARD_TEXTURE_FILE", "PARKED", "HandBoard", "presentation_poses"]
 

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from simrig.tasks.stack_blocks import BLOCK, BLOCKS
 
 from hw_drivers.robot import DeviceNotConnectedError, Robot
-from hw_drivers.sim.robot import HOME_Q14, SimRobot
-from hw_drivers.sim.tasks import TASK_NAMES, TASKS, ObjectPose
-from hw_drivers.sim.tasks.stack_blocks import BLOCK, BLOCKS
 from pilworld.types import LEFT_ARM, LEFT_GRIP, RIGHT_ARM, RIGHT_GRIP, Observation
+from simrig.robot import HOME_Q14, SimRobot
+from simrig.tasks import TASK_NAMES, TASKS, ObjectPose
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
@@ -305,7 +305,7 @@ def test_task_state_is_json_and_privileged(robots: Callable[[str], SimRobot]) ->
 
 
 def test_render_error_names_the_fix(monkeypatch: pytest.MonkeyPatch) -> None:
-    from hw_drivers.sim import gl
+    from simrig import gl
 
     def broken(*args: object, **kwargs: object) -> None:
         raise RuntimeError("gladLoadGL error")

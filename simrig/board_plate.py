@@ -1,7 +1,7 @@
 """The textured plate a simulated ChArUco board is printed on: its PNG texture and its MJCF assets.
 
-Shared by the board held in a gripper (:mod:`hw_drivers.sim.board_mount`, head-camera hand-eye) and the
-board lying on the table (:mod:`hw_drivers.sim.table_board`, wrist-camera eye-in-hand). The plate is a
+Shared by the board held in a gripper (:mod:`simrig.board_mount`, head-camera hand-eye) and the
+board lying on the table (:mod:`simrig.table_board`, wrist-camera eye-in-hand). The plate is a
 box mesh whose front-face vertices are the page corners with explicit texture coordinates, so a texel
 edge lies exactly at its board-frame position (see board_mount's docstring for the accuracy measured).
 """

@@ -25,15 +25,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hw_drivers.sim.board_mount import BoardMount
-from hw_drivers.sim.gl import mujoco  # imported through gl: the GL backend is chosen before MuJoCo loads
-from hw_drivers.sim.hand_board import HandBoard
-from hw_drivers.sim.objects import FixtureSpec, GeomSpec, ObjectSpec
-from hw_drivers.sim.table_board import TableBoard
 from pilworld.config.rig import ArmConfig, RigConfig
 from pilworld.geometry import invert_transform
 from pilworld.kinematics.ur_dh import dh_params
 from pilworld.types import ARM_SIDES
+from simrig.board_mount import BoardMount
+from simrig.gl import mujoco  # imported through gl: the GL backend is chosen before MuJoCo loads
+from simrig.hand_board import HandBoard
+from simrig.objects import Assets, FixtureSpec, GeomSpec, ObjectSpec
+from simrig.table_board import TableBoard
 
 ARM_RGBA = (0.62, 0.63, 0.66, 1.0)
 JOINT_RGBA = (0.28, 0.30, 0.33, 1.0)
@@ -88,8 +88,13 @@ def _mat_to_quat(R: NDArray[np.float64]) -> tuple[float, float, float, float]:
 
 
 def _geom_xml(g: GeomSpec, name: str | None = None, extra: str = "") -> str:
-    attrs = [f'type="{g.type}"', f'size="{_f(g.size)}"', f'rgba="{_f(g.rgba)}"', f'pos="{_f(g.pos)}"']
-    attrs.append(f'quat="{_f(g.quat)}"')
+    attrs = [f'type="{g.type}"', f'rgba="{_f(g.rgba)}"', f'pos="{_f(g.pos)}"', f'quat="{_f(g.quat)}"']
+    if g.size:
+        attrs.insert(1, f'size="{_f(g.size)}"')
+    if g.mesh is not None:
+        attrs.append(f'mesh="{g.mesh}"')
+    if g.material is not None:
+        attrs.append(f'material="{g.material}"')
     if name:
         attrs.insert(0, f'name="{name}"')
     if not g.collide:
@@ -240,6 +245,8 @@ def _object_xml(obj: ObjectSpec) -> str:
 
 
 def _volume(g: GeomSpec) -> float:
+    if g.volume is not None:
+        return g.volume
     s = g.size
     if g.type == "box":
         return 8 * s[0] * s[1] * s[2]
@@ -249,11 +256,11 @@ def _volume(g: GeomSpec) -> float:
         return 4 / 3 * math.pi * s[0] ** 3
     if g.type == "capsule":
         return math.pi * s[0] ** 2 * (2 * s[1] + 4 / 3 * s[0])
-    raise ValueError(f"unsupported geom type {g.type!r} (box, cylinder, sphere, capsule)")
+    raise ValueError(f"unsupported geom type {g.type!r} (box, cylinder, sphere, capsule; mesh with its volume)")
 
 
 def _fixture_xml(fx: FixtureSpec) -> str:
-    lines = [f'<body name="{fx.name}" pos="{_f(fx.pos)}">']
+    lines = [f'<body name="{fx.name}" pos="{_f(fx.pos)}" quat="{_f(fx.quat)}">']
     lines += [_geom_xml(g, name=f"{fx.name}_g{k}") for k, g in enumerate(fx.geoms)]
     lines.append("</body>")
     return "\n".join(lines)
@@ -283,6 +290,9 @@ def build_mjcf(
         asset_xml += f"\n  <asset>{table_board.asset_xml()}</asset>"
     if hand_board is not None:
         asset_xml += f"\n  <asset>{hand_board.asset_xml()}</asset>"
+    task_assets = scene_assets(objects, fixtures)
+    if task_assets.xml:
+        asset_xml += "\n  <asset>" + "".join(task_assets.xml) + "</asset>"
     tx = TABLE_CENTRE_X
     marker_xml = [
         f'<site name="{name}" type="sphere" pos="{_f(xyz)}" size="{r:.6g}" rgba="1 0 1 1"/>' for name, xyz, r in markers
@@ -326,6 +336,14 @@ def build_mjcf(
   </actuator>
 </mujoco>
 """
+
+
+def scene_assets(objects: Sequence[ObjectSpec] = (), fixtures: Sequence[FixtureSpec] = ()) -> Assets:
+    """The textures, materials and meshes a task's objects and fixtures need (pass ``.files`` to compile)."""
+    out = Assets()
+    for item in (*objects, *fixtures):
+        out = out + item.assets
+    return out
 
 
 def compile_scene(xml: str, what: str = "simulated rig scene", assets: Mapping[str, bytes] | None = None) -> Any:
