@@ -36,7 +36,7 @@ from simrig.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, scene_assets
 from simrig.table_board import TableBoard
 from simrig.tasks import Layout, ObjectPose, Task, make_task
 
-DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
+DEFAULT_RIG = Path(__file__).resolve().parents[1] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 SETTLE_S = 0.5  # physics time given to a new layout before the lead-in
 
 

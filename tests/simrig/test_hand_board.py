@@ -14,7 +14,7 @@ from simrig.board_mount import BoardMount
 from simrig.hand_board import HandBoard, presentation_poses
 from simrig.robot import SimRobot
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 RIG = RigConfig.load(ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml")
 BOARD = ChArUcoBoard.from_yaml(ROOT / "configs" / "board" / "charuco_7x5_a4.yaml")
 SIZE = 512

@@ -13,7 +13,7 @@ from simrig.board_mount import BoardMount
 from simrig.scene import build_mjcf, compile_scene
 from simrig.table_board import TableBoard
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 RIG = RigConfig.load(ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml")
 BOARD = ChArUcoBoard.from_yaml(ROOT / "configs" / "board" / "charuco_7x5_a4.yaml")
 

@@ -16,12 +16,12 @@ from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPol
 from pilworld.policies.scripted.skill import errors_for
 from pilworld.types import HEAD_VIEW, LEFT_ARM, RIGHT_ARM, ChunkSpec, Observation
 from simrig.robot import SimRobot
-from simrig.tasks import TASK_NAMES, TASKS
+from simrig.tasks import TASK_NAMES, load_task
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
 ARM = np.r_[LEFT_ARM, RIGHT_ARM]
-INSTRUCTIONS = [TASKS[t].instruction for t in TASK_NAMES]
+INSTRUCTIONS = [load_task(t).instruction for t in TASK_NAMES]
 
 
 def _check_chunk(robot: SimRobot, chunk: NDArray[np.float32], state: NDArray[np.float32]) -> None:
