@@ -24,7 +24,7 @@ from pilworld.world_model.composite.objects import (
     support_top,
 )
 from simrig.robot import SimRobot
-from simrig.tasks import stack_bowls as sw
+from simrig.tasks import load_task
 
 ROOT = Path(__file__).resolve().parents[4]
 SIM_RIG = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
@@ -145,10 +145,10 @@ def test_a_cube_let_go_over_another_lands_on_it() -> None:
 
 def test_nested_bowls_rest_where_the_simulator_puts_them() -> None:
     spec = task_spec("stack_bowls")
-    large, medium = (spec.object(b[0]) for b in sw.BOWLS[:2])
+    large, medium = (spec.object(b) for b in ("bowl_large", "bowl_medium"))
     lo = TrackedObject(large.name, large.shape, np.zeros(3), Pose2D(0.15, 0.0, 0.0))
     up = TrackedObject(medium.name, medium.shape, np.zeros(3), Pose2D(0.15, 0.0, 0.05))
-    assert support_top(up, lo) == pytest.approx(sw.nested_base_height(1), abs=1e-9)
+    assert support_top(up, lo) == pytest.approx(load_task("stack_bowls").done_heights()["bowl_medium"], abs=1e-9)
 
 
 @pytest.mark.parametrize(("task", "subtask"), [("sort_cubes", 0), ("stack_blocks", 1), ("stack_bowls", 1)])

@@ -27,7 +27,7 @@ from pilworld.world_model.base import PredictRequest
 from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.model import CompositeWorldModel
 from simrig.robot import SimRobot
-from simrig.tasks import sort_cubes as sc
+from simrig.tasks import load_task
 
 ROOT = Path(__file__).resolve().parents[4]
 SIM_RIG = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
@@ -62,10 +62,15 @@ def test_the_carried_cube_ends_in_its_slot(rollout: Imagined) -> None:
     rig, model, result = rollout.rig, rollout.model, rollout.result
     scene = model._scene
     assert scene is not None
-    target = sc.CUBES[0][0]  # subtask 0: the first cube into the first slot
+    task = load_task("sort_cubes")
+    target = task.subtask_object(0)  # subtask 0: the first cube into the first slot
+    slot = task.regions["slot_0"]
+    assert slot.half_size is not None
     cube = next(o for o in scene.objects if o.name == target)
     assert cube.moved and cube.held_by is None
-    assert abs(cube.pose.x - sc.SLOT_X) < sc.TOLERANCE and abs(cube.pose.y - sc.SLOT_YS[0]) < sc.TOLERANCE
+    assert (
+        abs(cube.pose.x - slot.centre[0]) < slot.half_size[0] and abs(cube.pose.y - slot.centre[1]) < slot.half_size[1]
+    )
     assert cube.pose.z == pytest.approx(0.0)
     episode = rollout_episode(result, checkpoint="scripted_step_30k", seed=SEED, extra={"sim_task": "sort_cubes"})
     verdict = VisionSuccessJudge().judge(episode, JudgeContext(rig, "sort_cubes"))
