@@ -3,7 +3,9 @@
 One ``send_action`` is one control step (30 Hz by default). Underneath, the command is interpolated
 linearly over the physics sub-steps (≈500 Hz, as a UR controller's servoJ interpolates) and tracked by
 stiff position servos; arm joints are rate-limited to the UR's 180 °/s and grips to a full stroke in
-0.5 s, and the command actually applied is returned. ``observe`` renders every camera headless.
+0.5 s, and the command actually applied is returned. ``observe`` renders every camera headless; under
+``appearance="varied"`` (:mod:`simrig.appearance`) the scene is textured, lit differently per episode and
+every image goes through a camera model (exposure, white balance, noise, JPEG), all seeded by the reset.
 
 Sim-only extras: :meth:`SimRobot.reset` builds a subtask start (earlier subtasks already done, with
 ``H_h`` history frames at stride Δ before it), :meth:`SimRobot.object_poses` and
@@ -28,11 +30,12 @@ from hw_drivers.safety import dual_arm_speed_caps
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
+from simrig.appearance import DEFAULT_APPEARANCE, Look, apply_look, camera_effects, check_appearance, draw_look
 from simrig.board_mount import BoardMount
 from simrig.gl import make_renderer, mujoco
 from simrig.hand_board import PARKED, HandBoard
 from simrig.poses import HOME_Q14
-from simrig.scene import FINGER_SQUEEZE, build_mjcf, compile_scene, scene_assets, settings_for
+from simrig.scene import FINGER_SQUEEZE, appearance_assets, build_mjcf, compile_scene, scene_assets, settings_for
 from simrig.table_board import TableBoard
 from simrig.tasks import Layout, ObjectPose, Task, make_task
 
@@ -67,7 +70,10 @@ class SimRobot:
         board_mount: BoardMount | None = None,
         table_board: TableBoard | None = None,
         hand_board: HandBoard | None = None,
+        appearance: str = DEFAULT_APPEARANCE,
     ) -> None:
+        # "flat" or "varied" (simrig.appearance): textures, per-episode lighting and camera effects.
+        self.appearance = check_appearance(appearance)
         self.rig = rig if isinstance(rig, RigConfig) else RigConfig.load(rig)
         self.task = make_task(task) if isinstance(task, str) else task
         self.board_mount = board_mount  # a calibration board on one gripper (visual only), or None
@@ -94,6 +100,8 @@ class SimRobot:
         self.layout: Layout | None = None
         self.subtask: Subtask | None = None
         self.steps = 0  # control steps since the last reset
+        self.look: Look | None = None  # the varied look of this episode (None under "flat")
+        self._frame = 0  # control steps since reset() began, lead-in included: keys a frame's camera noise
 
     # ------------------------------------------------------------------ Robot contract
 
@@ -113,6 +121,7 @@ class SimRobot:
             if board is not None:
                 assets.update(board.assets())
         assets.update(scene_assets(self.task.objects(), self.task.fixtures()).files)
+        assets.update(appearance_assets(self.task.objects(), self.task.fixtures(), self.appearance).files)
         model = compile_scene(self.xml, f"sim rig {self.rig.name!r} with task {self.task.name!r}", assets or None)
         self._model = model
         self._data = mujoco.MjData(model)
@@ -189,7 +198,10 @@ class SimRobot:
                 vis.offwidth, vis.offheight = max(vis.offwidth, size[0]), max(vis.offheight, size[1])
                 renderer = self._extra_renderers[size] = make_renderer(self._model, *size)
         renderer.update_scene(self._data, camera=camera)
-        return np.array(renderer.render(), dtype=np.uint8, copy=True)
+        image = np.array(renderer.render(), dtype=np.uint8, copy=True)
+        if self.look is not None:
+            image = camera_effects(image, self.look, frame=self._frame, camera=camera)
+        return image
 
     def observe(self) -> Observation:
         self._require()
@@ -218,6 +230,7 @@ class SimRobot:
             mujoco.mj_step(self._model, self._data)
         self._target = new
         self.steps += 1
+        self._frame += 1
         return new.astype(np.float32)
 
     def _apply_ctrl(self, target: NDArray[np.float64], data: Any = None) -> None:
@@ -250,7 +263,8 @@ class SimRobot:
         ``task`` switches to another task first (the scene is rebuilt: ~0.2 s). The arms begin slightly
         away from home (seeded) and move home over ``history·stride`` control steps while the history
         frames are recorded every ``stride`` steps (oldest first); the start observation follows the
-        last step. With ``history=0`` the arms start at home.
+        last step. With ``history=0`` the arms start at home. Under the ``varied`` appearance the
+        episode's :class:`~simrig.appearance.Look` is drawn from ``(seed, subtask)`` here.
         """
         self._require()
         if task is not None:
@@ -270,6 +284,10 @@ class SimRobot:
         mujoco.mj_resetData(m, d)
         self.layout = self.task.layout(seed)
         self.set_object_poses(self.task.completed_poses(self.layout, subtask))
+        self._frame = 0
+        if self.appearance == "varied":  # lights and table material only: physics never reads them
+            self.look = draw_look(seed, subtask)
+            apply_look(m, self.look)
         rng = np.random.default_rng([seed, subtask, 7])
         start_q = HOME_Q14.copy()
         if history > 0:  # the lead-in moves home from a seeded perturbation; without one, start at home
@@ -300,6 +318,7 @@ class SimRobot:
             board_mount=self.board_mount,
             table_board=self.table_board,
             hand_board=self.hand_board,
+            appearance=self.appearance,
         )
 
     def set_boards(self, *, board_mount: BoardMount | None = None, hand_board: HandBoard | None = None) -> None:

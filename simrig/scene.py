@@ -29,6 +29,7 @@ from pilworld.config.rig import ArmConfig, RigConfig
 from pilworld.geometry import invert_transform
 from pilworld.kinematics.ur_dh import dh_params
 from pilworld.types import ARM_SIDES
+from simrig import appearance as app
 from simrig.board_mount import BoardMount
 from simrig.gl import mujoco  # imported through gl: the GL backend is chosen before MuJoCo loads
 from simrig.hand_board import HandBoard
@@ -62,7 +63,8 @@ class SceneSettings:
     finger_kp: float = 800.0  # N/m
     finger_force: float = 25.0  # N, the gripper's force limit per finger
     # Shadow maps cost 3–6× the rest of a 128² render on Mesa's CPU rasteriser (4 ms → 14–25 ms per
-    # view, measured); the key light's shading already separates faces, so they are off by default.
+    # view, measured); the key light's shading already separates faces, so they are off by default
+    # (the ``varied`` appearance turns them on, at a smaller shadow map: simrig.appearance.SHADOW_SIZE).
     shadows: bool = False
 
     @property
@@ -274,6 +276,8 @@ def build_mjcf(
     board_mount: BoardMount | None = None,
     table_board: TableBoard | None = None,
     hand_board: HandBoard | None = None,
+    *,
+    appearance: str = app.DEFAULT_APPEARANCE,
 ) -> str:
     """The MJCF of the rig with a task's objects and fixtures; ``markers`` are (name, xyz, radius) spheres.
 
@@ -281,8 +285,16 @@ def build_mjcf(
     :func:`compile_scene` as ``assets=board_mount.assets()``. ``table_board`` adds one lying on the table
     (``assets=table_board.assets()``), for the wrist cameras. ``hand_board`` adds one a person holds up
     (a mocap body, ``assets=hand_board.assets()``), for intrinsics.
+
+    ``appearance`` (:mod:`simrig.appearance`): ``"flat"`` is the plain look; ``"varied"`` textures the
+    table and every untextured object and turns shadow maps on; its textures must be passed to
+    :func:`compile_scene` too (``appearance_assets``).
     """
+    varied = app.check_appearance(appearance) == "varied"
     s = settings_for(rig)
+    look_assets = Assets()
+    if varied:
+        objects, fixtures, look_assets = app.textured_scene(objects, fixtures)
     w, h = rig.image_size.width, rig.image_size.height
     arms = [_arm_xml(side, getattr(rig.arms, side), rig, s, board_mount) for side in ARM_SIDES]
     asset_xml = "" if board_mount is None else f"\n  <asset>{board_mount.asset_xml()}</asset>"
@@ -293,6 +305,16 @@ def build_mjcf(
     task_assets = scene_assets(objects, fixtures)
     if task_assets.xml:
         asset_xml += "\n  <asset>" + "".join(task_assets.xml) + "</asset>"
+    table_look = f'rgba="{_f(TABLE_RGBA)}"'
+    shadows, quality = s.shadows, 'shadowsize="1024"'
+    if varied:
+        asset_xml += "\n  <asset>" + "".join(look_assets.xml) + "</asset>"
+        table_look = f'rgba="1 1 1 1" material="{app.table_material_name(0)}"'
+        shadows = True
+        quality = (
+            f'shadowsize="{app.SHADOW_SIZE}" numslices="{app.NUM_SLICES}" numstacks="{app.NUM_STACKS}" '
+            f'offsamples="{app.OFF_SAMPLES}"'
+        )
     tx = TABLE_CENTRE_X
     marker_xml = [
         f'<site name="{name}" type="sphere" pos="{_f(xyz)}" size="{r:.6g}" rgba="1 0 1 1"/>' for name, xyz, r in markers
@@ -303,7 +325,7 @@ def build_mjcf(
   <size memory="32M"/>
   <visual>
     <global offwidth="{max(w, 640)}" offheight="{max(h, 480)}"/>
-    <quality shadowsize="1024"/>
+    <quality {quality}/>
     <headlight ambient="0.35 0.35 0.35" diffuse="0.35 0.35 0.35" specular="0.05 0.05 0.05"/>
   </visual>{asset_xml}
   <default>
@@ -312,10 +334,10 @@ def build_mjcf(
   </default>
   <worldbody>
     <light name="key" pos="0.3 -0.4 1.6" dir="-0.2 0.25 -1" diffuse="0.55 0.55 0.55" specular="0.1 0.1 0.1"
-      castshadow="{str(s.shadows).lower()}"/>
+      castshadow="{str(shadows).lower()}"/>
     <geom name="floor" type="plane" pos="0 0 -0.75" size="3 3 0.05" rgba="{_f(FLOOR_RGBA)}" contype="0"
       conaffinity="0"/>
-    <geom name="table" type="box" pos="{tx} 0 {-TABLE_HALF[2]}" size="{_f(TABLE_HALF)}" rgba="{_f(TABLE_RGBA)}"
+    <geom name="table" type="box" pos="{tx} 0 {-TABLE_HALF[2]}" size="{_f(TABLE_HALF)}" {table_look}
       friction="0.8 0.01 0.0005"/>
     {_head_camera_xml(rig)}
     {"" if table_board is None else table_board.geom_xml()}
@@ -341,9 +363,19 @@ def build_mjcf(
 def scene_assets(objects: Sequence[ObjectSpec] = (), fixtures: Sequence[FixtureSpec] = ()) -> Assets:
     """The textures, materials and meshes a task's objects and fixtures need (pass ``.files`` to compile)."""
     out = Assets()
-    for item in (*objects, *fixtures):
+    items: list[ObjectSpec | FixtureSpec] = [*objects, *fixtures]
+    for item in items:
         out = out + item.assets
     return out
+
+
+def appearance_assets(
+    objects: Sequence[ObjectSpec] = (), fixtures: Sequence[FixtureSpec] = (), appearance: str = app.DEFAULT_APPEARANCE
+) -> Assets:
+    """The textures :func:`build_mjcf` adds for ``appearance`` (none for ``flat``; pass ``.files`` to compile)."""
+    if app.check_appearance(appearance) == "flat":
+        return Assets()
+    return app.textured_scene(objects, fixtures)[2]
 
 
 def compile_scene(xml: str, what: str = "simulated rig scene", assets: Mapping[str, bytes] | None = None) -> Any:

@@ -197,6 +197,7 @@ class SimBackend:
     ``task``/``seed``/``subtask``: the scene set up at start (``SimRobot.reset``). :meth:`call` runs any
     function of the ``SimRobot`` on the simulation thread (reset a subtask, read the privileged checker).
     ``stream_sizes``: per camera, the (width, height) its frames are rendered at (same field of view).
+    ``appearance``: the rig's look, ``"flat"`` or ``"varied"`` (``SimRobot``'s, see ``simrig.appearance``).
     """
 
     def __init__(
@@ -209,6 +210,7 @@ class SimBackend:
         camera_fps: float = 10.0,
         stream_sizes: dict[str, tuple[int, int]] | None = None,
         start_timeout: float = 60.0,
+        appearance: str = "flat",
     ) -> None:
         from simrig.robot import DEFAULT_RIG
 
@@ -217,6 +219,7 @@ class SimBackend:
         self._rig_arg = DEFAULT_RIG if rig is None else rig
         self._task = task
         self._seed, self._subtask = seed, subtask
+        self._appearance = appearance  # the simulated rig's look (simrig.appearance): "flat" or "varied"
         self._camera_period = 1.0 / camera_fps
         # Per camera, (width, height) of the frames served (a real camera's full resolution); default the rig's.
         self._sizes = dict(stream_sizes or {})
@@ -245,7 +248,7 @@ class SimBackend:
         from simrig.robot import SimRobot
 
         try:
-            robot = SimRobot(self._rig_arg, self._task)
+            robot = SimRobot(self._rig_arg, self._task, appearance=self._appearance)
             robot.connect()
             robot.reset(seed=self._seed, subtask=self._subtask, history=0)
             self._cameras = robot.spec.cameras

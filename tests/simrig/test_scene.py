@@ -21,7 +21,7 @@ from pilworld.config.rig import RigConfig
 from pilworld.types import LEFT_ARM, RIGHT_ARM
 from simrig.gl import make_renderer, mujoco
 from simrig.objects import GeomSpec, ObjectSpec, bowl_object, box_object
-from simrig.scene import build_mjcf, compile_scene
+from simrig.scene import build_mjcf, compile_scene, scene_assets
 from simrig.tasks import load_task, packaged_tasks
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -206,7 +206,8 @@ def test_unsupported_geom_type_is_named() -> None:
 def test_every_task_scene_compiles(rig: RigConfig, name: str) -> None:
     task = load_task(name)
     objects = task.objects()
-    model: Any = compile_scene(build_mjcf(rig, objects, task.fixtures()))
+    assets = dict(scene_assets(objects, task.fixtures()).files)
+    model: Any = compile_scene(build_mjcf(rig, objects, task.fixtures()), assets=assets)
     for obj in objects:
         body = model.body(obj.name)
         assert model.body_mass[body.id] == pytest.approx(obj.mass, rel=1e-4)
