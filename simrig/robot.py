@@ -65,7 +65,7 @@ class SimRobot:
     def __init__(
         self,
         rig: RigConfig | str | Path = DEFAULT_RIG,
-        task: str | Task = "sort_cubes",
+        task: str | Path | Task = "sort_cubes",
         *,
         board_mount: BoardMount | None = None,
         table_board: TableBoard | None = None,
@@ -75,7 +75,7 @@ class SimRobot:
         # "flat" or "varied" (simrig.appearance): textures, per-episode lighting and camera effects.
         self.appearance = check_appearance(appearance)
         self.rig = rig if isinstance(rig, RigConfig) else RigConfig.load(rig)
-        self.task = make_task(task) if isinstance(task, str) else task
+        self.task = task if isinstance(task, Task) else make_task(task)
         self.board_mount = board_mount  # a calibration board on one gripper (visual only), or None
         self.table_board = table_board  # a calibration board lying on the table (visual only), or None
         self.hand_board = hand_board  # a calibration board a person holds up (mocap, visual only), or None
@@ -256,7 +256,7 @@ class SimRobot:
         return self._target.astype(np.float32)
 
     def reset(
-        self, seed: int = 0, subtask: int = 0, *, task: str | Task | None = None, history: int = 5, stride: int = 3
+        self, seed: int = 0, subtask: int = 0, *, task: str | Path | Task | None = None, history: int = 5, stride: int = 3
     ) -> Start:
         """Lay out the task for ``seed`` with subtasks before ``subtask`` done; return the shared start.
 
@@ -268,7 +268,7 @@ class SimRobot:
         """
         self._require()
         if task is not None:
-            new = make_task(task) if isinstance(task, str) else task
+            new = task if isinstance(task, Task) else make_task(task)
             if new.digest != self.task.digest:
                 new.check_index(subtask)
                 self.disconnect()

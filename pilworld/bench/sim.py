@@ -11,31 +11,41 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pilworld.types import ChunkSpec
 
+if TYPE_CHECKING:
+    from simrig.tasks import Task
+
 
 def run_sim_bench(
     rig_path: str,
     *,
-    task: str = "sort_cubes",
+    task: str | Task = "sort_cubes",
     subtasks: int = 0,
-    tasks: list[str] | None = None,
+    tasks: list[str | Task] | None = None,
     checkpoints: list[str] | None = None,
     workers: int | None = None,
     progress: bool = True,
+    appearance: str = "flat",
 ) -> dict[str, Any]:
+    """``task`` (a packaged name, a task file or a task) for the speed figures; ``tasks`` (default: the paper's
+    three) for the success rates."""
     from pilworld.collection.rollout import run_subtask
+    from pilworld.collection.tasks import require_simulated, resolve_tasks
     from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPolicy
     from simrig.gl import mujoco
     from simrig.robot import SimRobot
-    from simrig.tasks import TASK_NAMES
+    from simrig.tasks import PAPER_TASKS
 
     spec = ChunkSpec()
-    robot = SimRobot(rig_path, task)
+    (speed_task,) = resolve_tasks([task])
+    rate_tasks = resolve_tasks(list(tasks or PAPER_TASKS)) if subtasks > 0 else []
+    require_simulated([speed_task, *rate_tasks])
+    robot = SimRobot(rig_path, speed_task, appearance=appearance)
     robot.connect()
     try:
         start = robot.reset(seed=0, subtask=0, history=0)
@@ -55,7 +65,7 @@ def run_sim_bench(
                 robot.render(v)
         render_ms = (time.perf_counter() - t0) / (reps * len(views)) * 1000
         start = robot.reset(seed=1, subtask=0, history=0)
-        policy = ScriptedPolicy(robot.rig, BEST_CHECKPOINT, seed=1)
+        policy = ScriptedPolicy(robot.rig, BEST_CHECKPOINT, seed=1, task=speed_task)
         sim0, t0 = robot.time, time.perf_counter()
         run_subtask(robot, policy.infer, start.observation, robot.task.instruction, spec=spec, record=True)
         wall = time.perf_counter() - t0
@@ -64,7 +74,9 @@ def run_sim_bench(
         robot.disconnect()
     result: dict[str, Any] = {
         "rig": Path(rig_path).name,
-        "task": task,
+        "task": speed_task.name,
+        "task_sha256": speed_task.digest,
+        "appearance": appearance,
         "physics_steps_per_s": round(physics, 1),
         "physics_timestep_s": float(model.opt.timestep),
         "render_ms_per_view": round(render_ms, 3),
@@ -75,10 +87,19 @@ def run_sim_bench(
     if subtasks > 0:
         from pilworld.collection.evaluate import success_rates
 
-        names = tasks or list(TASK_NAMES)
+        names = [t.name for t in rate_tasks]
         ckpts = checkpoints or [c.name for c in CHECKPOINTS]
         t0 = time.perf_counter()
-        rates = success_rates(rig_path, names, ckpts, subtasks, workers=workers, spec=spec, progress=progress)
+        rates = success_rates(
+            rig_path,
+            list(rate_tasks),
+            ckpts,
+            subtasks,
+            workers=workers,
+            spec=spec,
+            progress=progress,
+            appearance=appearance,
+        )
         result["success_rates"] = rates
         result["subtasks"] = subtasks
         result["success_rates_wall_s"] = round(time.perf_counter() - t0, 1)

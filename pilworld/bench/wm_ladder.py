@@ -622,13 +622,15 @@ class Lab:
         return rollout, success
 
     def episode(self, pair: PairedSubtask, rollout: Rollout) -> Episode:
+        from pilworld.collection.tasks import task_extra
         from pilworld.paired.episodes import rollout_episode
+        from simrig.tasks import load_task
 
         return rollout_episode(
             rollout,
             checkpoint=pair.checkpoint,
             seed=pair.seed,
-            extra={"pair": pair.pair_id, "sim_task": pair.subtask.task},
+            extra={"pair": pair.pair_id, **task_extra(load_task(pair.subtask.task))},
         )
 
     def context(self, task: str) -> Any:

@@ -146,7 +146,8 @@ def heldout_description(root: Path) -> dict[str, Any]:
     for e in store.episodes:
         raw = e.get("extra")
         if raw:
-            tasks.add(str(json.loads(raw).get("sim_task", "?")))
+            extra = json.loads(raw)
+            tasks.add(str(extra.get("task") or extra.get("sim_task") or "?"))
     overlap = sorted(set(seeds) & set(TRAINING_SEEDS))
     out: dict[str, Any] = {
         "root": str(root),

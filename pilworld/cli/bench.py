@@ -13,6 +13,7 @@ from typing import Any
 from pilworld.bench.reprojection import add_arguments as reprojection_arguments
 from pilworld.cli.bench_print import Column, emit, num, pct, table
 from pilworld.cli.control_video import parse_size
+from pilworld.collection.tasks import APPEARANCES
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
 from pilworld.types import ChunkSpec
@@ -132,9 +133,16 @@ def register(sub: Any) -> None:
         "sim", help="simulated rig: physics steps/s, render ms/view, realtime factor, success rates"
     )
     sm.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
-    sm.add_argument("--task", default="sort_cubes", help="task for the speed figures (default sort_cubes)")
+    sm.add_argument(
+        "--task", default="sort_cubes", help="task (name or task file) for the speed figures (default sort_cubes)"
+    )
     sm.add_argument("--subtasks", type=int, default=0, help="also measure success rates over N subtask starts per task")
-    sm.add_argument("--tasks", default="all", help="comma-separated tasks for the success rates (default all)")
+    sm.add_argument(
+        "--tasks",
+        default="all",
+        help="tasks for the success rates: names or task files, comma-separated, or all (the paper's three; default)",
+    )
+    sm.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
     sm.add_argument("--checkpoints", default="all", help="comma-separated scripted checkpoints (default all)")
     sm.add_argument("--workers", type=int, default=None, help="processes for the success rates (default: CPUs)")
     sm.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
@@ -463,16 +471,20 @@ def _names(value: str, all_names: list[str], what: str) -> list[str]:
 
 def _sim(args: argparse.Namespace) -> int:
     from pilworld.bench.sim import run_sim_bench
+    from pilworld.collection.tasks import require_simulated, resolve_tasks
     from pilworld.policies.scripted import CHECKPOINTS
-    from simrig.tasks import TASK_NAMES
 
-    tasks = _names(args.tasks, list(TASK_NAMES), "--tasks")
+    (task,) = resolve_tasks([args.task], what="--task")
+    tasks = resolve_tasks(args.tasks, what="--tasks")
+    require_simulated([task], what="--task")
+    require_simulated(tasks, what="--tasks")
     ckpts = _names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
     result = run_sim_bench(
         str(args.rig),
-        task=args.task,
+        task=task,
         subtasks=args.subtasks,
-        tasks=tasks,
+        tasks=list(tasks),
+        appearance=args.appearance,
         checkpoints=ckpts,
         workers=args.workers,
         progress=not args.json,

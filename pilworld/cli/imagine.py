@@ -29,6 +29,15 @@ def register(sub: Any) -> None:
     p.add_argument("--steps", type=int, default=None, help="sampling steps (default: the model's)")
     p.add_argument("--rounds", type=int, default=None, help="closed-loop rounds (default: the starts' own, else 5)")
     p.add_argument("--count", type=int, default=None, help="use the first N starts of the source (default all)")
+    p.add_argument(
+        "--task",
+        default="",
+        help="the task file(s) of the starts' tasks (packaged names or .yaml files, comma-separated): what a "
+        "scripted checkpoint acts on and whose hash the episodes record (default: the packaged task of each name)",
+    )
+    p.add_argument(
+        "--instruction", default=None, help="the instruction given to the policy and recorded (default: the starts')"
+    )
     p.add_argument("--start-frame", type=int, default=None, help="a plain dataset's start frame (default H_h)")
     p.add_argument("--video-mode", default="lossless", choices=["lossless", "h264", "av1"])
     p.add_argument("--workers", type=int, default=1, help="worker processes on this machine (default 1)")
@@ -62,6 +71,11 @@ def _imagine(args: argparse.Namespace) -> int:
         raise ValueError(f"--rounds: expected at least 1, got {args.rounds}")
     if args.workers < 1:
         raise ValueError(f"--workers: expected at least 1, got {args.workers}")
+    from pilworld.collection.tasks import check_instruction, resolve_tasks
+
+    if args.task.strip():
+        resolve_tasks(args.task, what="--task")
+    check_instruction(args.instruction, "--instruction")
     cfg = ImagineConfig(
         starts=str(args.starts),
         checkpoints=[c.strip() for c in args.checkpoints.split(",")],
@@ -74,6 +88,8 @@ def _imagine(args: argparse.Namespace) -> int:
         spec=ChunkSpec(rounds=args.rounds) if args.rounds is not None else None,
         start_frame=args.start_frame,
         count=args.count,
+        task=args.task,
+        instruction=args.instruction or "",
     )
     backend = None
     if args.ray:

@@ -33,6 +33,7 @@ from pilworld.cli import (
     report,
     robot,
     sim,
+    task,
     train,
 )
 
@@ -58,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     report.register(sub)
     robot.register(sub)
     sim.register(sub)
+    task.register(sub)
     train.register(sub)
     return parser
 

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.cli.bench import DEFAULT_RIG
+from pilworld.collection.tasks import APPEARANCES
 
 
 def register(sub: Any) -> None:
@@ -24,9 +25,8 @@ def register(sub: Any) -> None:
         "in the world model (origin imagined) and on the robot (origin real). Rerunning the same command resumes.",
     )
     r.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
-    r.add_argument(
-        "--task", required=True, help="task(s): sort_cubes, stack_bowls, stack_blocks, comma-separated, or all"
-    )
+    r.add_argument("--task", required=True, help=TASK_HELP)
+    task_options(r)
     r.add_argument(
         "--checkpoints",
         default=None,
@@ -66,9 +66,8 @@ def register(sub: Any) -> None:
         "runs imagined-only branches from them.",
     )
     s.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
-    s.add_argument(
-        "--task", required=True, help="task(s): sort_cubes, stack_bowls, stack_blocks, comma-separated, or all"
-    )
+    s.add_argument("--task", required=True, help=TASK_HELP)
+    task_options(s)
     s.add_argument("--count", type=int, required=True, help="starts per task")
     s.add_argument("--out", type=Path, required=True, help="starts folder (created, or resumed)")
     s.add_argument("--seed", type=int, default=0, help="layout seed of the first starts (default 0)")
@@ -80,6 +79,45 @@ def register(sub: Any) -> None:
         help="fake rig only: the simulator lays out each scene, nobody is asked (refused on real hardware)",
     )
     s.set_defaults(handler=_record_starts)
+
+
+TASK_HELP = (
+    "task(s): packaged names (sort_cubes, stack_bowls, stack_blocks) or task files (.yaml), comma-separated, "
+    "or all (the paper's three)"
+)
+
+
+def task_options(p: argparse.ArgumentParser) -> None:
+    """``--instruction`` and ``--appearance``, beside ``--task``."""
+    p.add_argument(
+        "--instruction",
+        default=None,
+        help="the instruction given to the policy and recorded (default: each task file's own)",
+    )
+    p.add_argument(
+        "--appearance",
+        default="flat",
+        choices=APPEARANCES,
+        help="the simulated scene's look (default flat; a hardware rig's scene is what stands on the table)",
+    )
+
+
+def check_tasks(args: argparse.Namespace) -> list[Any]:
+    """``--task`` and ``--instruction`` checked before anything runs (one line naming the flag otherwise)."""
+    from pilworld.collection.tasks import check_instruction, resolve_tasks
+    from pilworld.config.rig import RigConfig
+    from pilworld.paired.runner import check_station_tasks
+
+    tasks = resolve_tasks(args.task, what="--task")
+    check_instruction(args.instruction, "--instruction")
+    rig = RigConfig.load(args.rig)
+    check_station_tasks(rig, tasks, _operator(args), what="--task")
+    if rig.hardware is not None and args.appearance != "flat":
+        raise ValueError(
+            f"--appearance: rig {rig.name!r} is a hardware rig; its scene is what stands on the table "
+            f"({args.appearance!r} is for the simulated rig)"
+        )
+    return tasks
 
 
 def _operator(args: argparse.Namespace) -> Any:
@@ -95,6 +133,7 @@ def _record_starts(args: argparse.Namespace) -> int:
 
     if args.count < 1:
         raise ValueError(f"--count: expected at least 1, got {args.count}")
+    check_tasks(args)
     summary = record_starts(
         str(args.rig),
         args.task,
@@ -104,6 +143,8 @@ def _record_starts(args: argparse.Namespace) -> int:
         spec=ChunkSpec(rounds=args.rounds),
         progress=not args.json,
         operator=_operator(args),
+        instruction=args.instruction or "",
+        appearance=args.appearance,
     )
     print(f"record-starts: {summary['starts_recorded']} of {summary['starts_planned']} starts recorded in {args.out}")
     if args.json:
@@ -119,6 +160,7 @@ def _run(args: argparse.Namespace) -> int:
     ckpts = [c.strip() for c in args.checkpoints.split(",")] if args.checkpoints else [default_checkpoint()]
     if args.rounds < 1:
         raise ValueError(f"--rounds: expected at least 1, got {args.rounds}")
+    check_tasks(args)
     cfg = PairedConfig(
         rig=str(args.rig),
         task=args.task,
@@ -131,6 +173,8 @@ def _run(args: argparse.Namespace) -> int:
         steps=args.steps,
         video_mode=args.video_mode,
         spec=ChunkSpec(rounds=args.rounds),
+        instruction=args.instruction or "",
+        appearance=args.appearance,
     )
     summary = paired_run(cfg, progress=not args.json, operator=_operator(args))
     ds = summary["dataset"]

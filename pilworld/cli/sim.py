@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.cli.bench import DEFAULT_RIG, _names
+from pilworld.collection.tasks import APPEARANCES
 
 
 def register(sub: Any) -> None:
@@ -21,7 +22,15 @@ def register(sub: Any) -> None:
     cmds.required = True
 
     c = cmds.add_parser("collect", help="record runs of scripted checkpoints into an episode store")
-    c.add_argument("--task", default="all", help="task name(s), comma-separated, or 'all' (default all)")
+    c.add_argument(
+        "--task",
+        default="all",
+        help="task(s): packaged names or task files (.yaml), comma-separated, or 'all' (the paper's three; default)",
+    )
+    c.add_argument(
+        "--instruction", default=None, help="the instruction given to the policy and recorded (default: the task's)"
+    )
+    c.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
     c.add_argument("--checkpoint", default="all", help="scripted checkpoint(s), comma-separated, or 'all'")
     c.add_argument("--episodes", type=int, required=True, help="runs per task and checkpoint")
     c.add_argument("--out", type=Path, required=True, help="dataset folder (created or resumed)")
@@ -33,7 +42,7 @@ def register(sub: Any) -> None:
     c.set_defaults(handler=_collect)
 
     s = cmds.add_parser("show", help="write the three views of a task start side by side (PNG)")
-    s.add_argument("--task", required=True, help="task name")
+    s.add_argument("--task", required=True, help="a packaged task's name or a task file (.yaml)")
     s.add_argument("--seed", type=int, default=0, help="layout seed (default 0)")
     s.add_argument("--subtask", type=int, default=0, help="subtask whose start to show (default 0)")
     s.add_argument("--out", type=Path, required=True, help="PNG file to write")
@@ -44,17 +53,21 @@ def register(sub: Any) -> None:
 
 def _collect(args: argparse.Namespace) -> int:
     from pilworld.collection.collect import collect
+    from pilworld.collection.tasks import check_instruction, require_simulated, resolve_tasks
     from pilworld.policies.scripted import CHECKPOINTS
-    from simrig.tasks import TASK_NAMES
 
     if args.episodes < 1:
         raise ValueError(f"--episodes: expected at least 1, got {args.episodes}")
-    tasks = _names(args.task, list(TASK_NAMES), "--task")
+    tasks = resolve_tasks(args.task, what="--task")
+    require_simulated(tasks, what="--task")
+    instruction = check_instruction(args.instruction, "--instruction")
     ckpts = _names(args.checkpoint, [c.name for c in CHECKPOINTS], "--checkpoint")
     summary = collect(
         args.out,
         rig_path=str(args.rig),
         tasks=tasks,
+        instruction=instruction,
+        appearance=args.appearance,
         checkpoints=ckpts,
         episodes=args.episodes,
         seed0=args.seed,
@@ -77,12 +90,15 @@ def _collect(args: argparse.Namespace) -> int:
 def _show(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from pilworld.collection.tasks import require_simulated, resolve_tasks
     from pilworld.io.video import write_png
     from simrig.robot import SimRobot
 
     if args.scale < 1:
         raise ValueError(f"--scale: expected an integer >= 1, got {args.scale}")
-    with SimRobot(args.rig, args.task) as robot:
+    (task,) = resolve_tasks([args.task], what="--task")
+    require_simulated([task], what="--task")
+    with SimRobot(args.rig, task) as robot:
         start = robot.reset(seed=args.seed, subtask=args.subtask, history=0)
         row = np.concatenate([start.observation.images[v] for v in robot.spec.cameras], axis=1)
     if args.scale > 1:

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm import tqdm
@@ -30,14 +30,20 @@ from pilworld.data.spec import DatasetSpec
 from pilworld.data.writer import EpisodeWriter
 from pilworld.types import ChunkSpec, Subtask
 
+if TYPE_CHECKING:
+    from simrig.tasks import Task
+
 JUDGE_ID = "sim_checker"
 
 
 @dataclass(frozen=True)
 class RunJob:
-    task: str
+    task: str  # the task's name (it keys the run)
     checkpoint: str
     seed: int
+    source: str | Task | None = None  # the task file's path (or the task) when not a packaged name
+    instruction: str = ""  # the instruction given to the policy and recorded; "" = the task's own
+    appearance: str = "flat"
 
     @property
     def run_id(self) -> str:
@@ -58,38 +64,44 @@ class PartResult:
     rounds: np.ndarray
     success: bool
     reason: str
+    task_fields: dict[str, Any] = field(default_factory=dict)  # extra.task, task_sha256 (and sim_task)
 
 
 def simulate_run(rig_path: str, job: RunJob, spec: ChunkSpec) -> list[PartResult]:
     """Simulate one run (all subtasks back to back) and return its parts."""
     from pilworld.collection.rollout import run_subtask
+    from pilworld.collection.tasks import task_extra
     from pilworld.policies.scripted import ScriptedPolicy
 
-    robot = worker_robot(rig_path, job.task)
-    policy = ScriptedPolicy(robot.rig, job.checkpoint, horizon=spec.horizon)
+    robot = worker_robot(rig_path, job.source if job.source is not None else job.task, job.appearance)
+    # Given its task file, a scripted checkpoint acts on that task whatever the instruction says.
+    policy = ScriptedPolicy(robot.rig, job.checkpoint, horizon=spec.horizon, task=robot.task)
     start = robot.reset(seed=job.seed, subtask=0, history=spec.history, stride=spec.stride)
     obs = start.observation
     parts = []
     n = robot.task.num_subtasks
+    instruction = job.instruction or robot.task.instruction
+    fields = task_extra(robot.task)
     # One continuous episode: the policy keeps its memory across subtask boundaries (a gripper may be
     # half open when a window ends); only the checker's windows are per subtask.
     policy.reset(seed=job.seed * 100)
     for k in range(n):
-        robot.subtask = Subtask(job.task, k, robot.task.instruction, job.seed)
-        rec = run_subtask(robot, policy.infer, obs, robot.task.instruction, spec=spec, subtask_index=k)
+        robot.subtask = Subtask(robot.task.name, k, instruction, job.seed)
+        rec = run_subtask(robot, policy.infer, obs, instruction, spec=spec, subtask_index=k)
         assert rec.check is not None and rec.last is not None
         parts.append(
             PartResult(
                 job=job,
                 subtask_index=k,
                 num_subtasks=n,
-                instruction=robot.task.instruction,
+                instruction=instruction,
                 images={v: np.stack(frames) for v, frames in rec.images.items()},
                 state=np.stack(rec.states),
                 action=np.stack(rec.actions),
                 rounds=np.asarray(rec.rounds, dtype=np.int64),
                 success=rec.check.success,
                 reason=rec.check.reason,
+                task_fields=fields,
             )
         )
         obs = rec.last  # the next subtask continues from here; no second render
@@ -130,15 +142,32 @@ def _extra(row: dict[str, Any]) -> dict[str, Any]:
     return dict(json.loads(raw)) if raw else {}
 
 
-def plan_jobs(tasks: Sequence[str], checkpoints: Sequence[str], episodes: int, seed0: int) -> list[RunJob]:
-    return [RunJob(t, c, seed0 + i) for t in tasks for c in checkpoints for i in range(episodes)]
+def plan_jobs(
+    tasks: Sequence[str | Task],
+    checkpoints: Sequence[str],
+    episodes: int,
+    seed0: int,
+    *,
+    instruction: str = "",
+    appearance: str = "flat",
+) -> list[RunJob]:
+    """``episodes`` runs per task and checkpoint; ``tasks`` are packaged names or loaded tasks."""
+    from pilworld.collection.tasks import task_ref
+
+    jobs = []
+    for t in tasks:
+        name, source = (t, None) if isinstance(t, str) else (t.name, task_ref(t))
+        jobs += [
+            RunJob(name, c, seed0 + i, source, instruction, appearance) for c in checkpoints for i in range(episodes)
+        ]
+    return jobs
 
 
 def collect(
     out: str | Path,
     *,
     rig_path: str,
-    tasks: Sequence[str],
+    tasks: Sequence[str | Path | Task],
     checkpoints: Sequence[str],
     episodes: int,
     seed0: int = 0,
@@ -146,19 +175,39 @@ def collect(
     video_mode: str = "h264",
     spec: ChunkSpec | None = None,
     progress: bool = True,
+    instruction: str = "",
+    appearance: str = "flat",
 ) -> dict[str, Any]:
-    """Collect ``episodes`` runs per task × checkpoint into ``out``; returns a summary (counts, time)."""
+    """Collect ``episodes`` runs per task × checkpoint into ``out``; returns a summary (counts, time).
+
+    ``tasks`` are packaged names, task files or loaded tasks; ``instruction`` (non-empty) replaces each
+    task's own as the instruction given to the policy and recorded."""
     import time
+
+    from pilworld.collection.tasks import require_simulated, resolve_tasks
+    from pilworld.policies.registry import policy_names
 
     spec = spec or ChunkSpec()
     root = Path(out)
+    # Everything is checked before the folder is created or touched.
+    loaded = resolve_tasks(list(tasks))
+    require_simulated(loaded)
+    bad = [c for c in checkpoints if c not in policy_names()]
+    if bad or not checkpoints:
+        raise ValueError(
+            f"checkpoint: not a scripted checkpoint: {bad or list(checkpoints)} (known: {', '.join(policy_names())})"
+        )
+    if not instruction.strip() and instruction:
+        raise ValueError("instruction: must not be blank")
+    store_spec = dataset_spec(rig_path, video_mode, spec)
     done = stored_parts(root)
-    jobs = plan_jobs(tasks, checkpoints, episodes, seed0)
-    todo = [j for j in jobs if j.run_id not in done or len(done[j.run_id]) < _num_subtasks(j.task)]
+    jobs = plan_jobs(loaded, checkpoints, episodes, seed0, instruction=instruction, appearance=appearance)
+    parts_of = {t.name: t.num_subtasks for t in loaded}
+    todo = [j for j in jobs if j.run_id not in done or len(done[j.run_id]) < parts_of[j.task]]
     workers = worker_count(workers, len(todo))
     t0 = time.monotonic()
     written = 0
-    with EpisodeWriter(root, dataset_spec(rig_path, video_mode, spec)) as writer:
+    with EpisodeWriter(root, store_spec) as writer:
         bar = tqdm(total=len(todo), desc="runs", unit="run", disable=not progress)
         for parts in process_map(_worker, [(rig_path, j, spec) for j in todo], workers):
             have = done.get(parts[0].job.run_id, set())
@@ -186,12 +235,6 @@ def collect(
     return summary
 
 
-def _num_subtasks(task: str) -> int:
-    from simrig.tasks import make_task
-
-    return make_task(task).num_subtasks
-
-
 def _episode(p: PartResult) -> Episode:
     return Episode(
         images=p.images,
@@ -203,12 +246,19 @@ def _episode(p: PartResult) -> Episode:
         checkpoint=p.job.checkpoint,
         seed=p.job.seed,
         round_index=p.rounds,
-        extra={"run": p.job.run_id, "sim_task": p.job.task, "parts": p.num_subtasks, "checker": p.reason},
+        extra={
+            "run": p.job.run_id,
+            **(p.task_fields or {"task": p.job.task, "sim_task": p.job.task}),
+            "parts": p.num_subtasks,
+            "checker": p.reason,
+            **({"appearance": p.job.appearance} if p.job.appearance != "flat" else {}),
+        },
     )
 
 
 def summarize(root: Path) -> dict[str, Any]:
     """Episodes, frames, bytes and success/failure counts per task and checkpoint of a collected set."""
+    from pilworld.collection.tasks import episode_task_name
     from pilworld.data.info import disk_bytes
     from pilworld.data.outcomes import read_outcomes
 
@@ -217,7 +267,7 @@ def summarize(root: Path) -> dict[str, Any]:
     table: dict[str, dict[str, dict[str, int]]] = {}
     frames = 0
     for e, ep in enumerate(store.episodes):
-        task = str(_extra(ep).get("sim_task", "?"))
+        task = episode_task_name(_extra(ep), "?")
         row = table.setdefault(task, {}).setdefault(str(ep.get("checkpoint", "")), {"success": 0, "failure": 0})
         row["success" if verdict.get(e) else "failure"] += 1
         frames += int(ep["length"])

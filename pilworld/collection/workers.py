@@ -1,7 +1,7 @@
 """Simulation across processes: one connected robot per worker and task, and an ordered/unordered map.
 
 Workers are *spawned*: a forked child would inherit the parent's OpenGL (EGL) state. Each worker
-keeps one connected ``SimRobot`` per (rig, task) for all its jobs, since connecting costs ~0.2 s.
+keeps one connected ``SimRobot`` per (rig, task, appearance) for all its jobs, since connecting costs ~0.2 s.
 """
 
 from __future__ import annotations
@@ -9,21 +9,29 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    from simrig.tasks import Task
 
 T = TypeVar("T")
 R = TypeVar("R")
 
-_ROBOTS: dict[tuple[str, str], Any] = {}
+_ROBOTS: dict[tuple[str, str, str], Any] = {}
 
 
-def worker_robot(rig_path: str, task: str) -> Any:
-    """This process's connected ``SimRobot`` for ``(rig_path, task)``, made on first use."""
+def worker_robot(rig_path: str, task: str | Task, appearance: str = "flat") -> Any:
+    """This process's connected ``SimRobot`` for ``(rig_path, task, appearance)``, made on first use.
+
+    ``task`` is a packaged task's name, a task file's path or a loaded task; robots are kept per task
+    file content (:attr:`Task.digest`), so an edited file gets a new scene."""
     from simrig.robot import SimRobot
+    from simrig.tasks import load_task
 
-    key = (rig_path, task)
+    loaded = load_task(task)
+    key = (rig_path, loaded.digest, appearance)
     if key not in _ROBOTS:
-        robot = SimRobot(rig_path, task)
+        robot = SimRobot(rig_path, loaded, appearance=appearance)
         robot.connect()
         _ROBOTS[key] = robot
     return _ROBOTS[key]

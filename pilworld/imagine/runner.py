@@ -44,6 +44,7 @@ from pilworld.policies.base import PolicyError
 from pilworld.starts.sources import StartsSource, load_starts
 from pilworld.starts.store import StartsError, robot_spec_from_json, robot_spec_json
 from pilworld.types import ChunkSpec, RobotSpec
+from simrig.tasks import Task
 
 CONFIG_FILE = "imagine_config.json"
 
@@ -69,11 +70,25 @@ class ImagineConfig:
     )
     start_frame: int | None = None  # a plain dataset's start frame (default H_h)
     count: int | None = None  # the first ``count`` scenes of the source; None = all
+    # The task files of the starts' tasks (names or paths, comma-separated; "" = the packaged task of each
+    # name): what a scripted checkpoint acts on, and whose hash the episodes record.
+    task: str = ""
+    instruction: str = ""  # the instruction given to the policy and recorded; "" = each start's own
 
     def __post_init__(self) -> None:
+        from pilworld.collection.tasks import check_instruction
+
         check_checkpoints(self.checkpoints)
         if self.count is not None and self.count < 1:
             raise ValueError(f"count: expected at least 1 start, got {self.count}")
+        check_instruction(self.instruction, "instruction")
+
+    @property
+    def task_files(self) -> dict[str, Task]:
+        """The tasks given (``task``), by name; {} when none was."""
+        from pilworld.collection.tasks import resolve_tasks
+
+        return {t.name: t for t in resolve_tasks(self.task, what="task")} if self.task.strip() else {}
 
     def to_json(self) -> dict[str, Any]:
         d = asdict(self)
@@ -146,6 +161,36 @@ def plan_jobs(cfg: ImagineConfig, source: StartsSource) -> list[ImagineJob]:
                 )
             )
     return jobs
+
+
+def check_start_tasks(cfg: ImagineConfig, source: StartsSource) -> None:
+    """Every task the starts hold must be known where a checkpoint needs it, and each task file given must be
+    the one the starts were recorded with (when they recorded its hash)."""
+    from pilworld.collection.tasks import task_for_name
+    from pilworld.paired.runner import is_server
+
+    given = cfg.task_files
+    names = sorted({s.subtask.task for s in source.starts})
+    absent = sorted(set(given) - set(names))
+    if absent:
+        raise ValueError(f"task: the starts in {source.root} hold no start of task {absent[0]!r} (they hold {names})")
+    scripted = [c for c in cfg.checkpoints if not is_server(c)]
+    for stored in source.starts:
+        name = stored.subtask.task
+        task = task_for_name(name, given)
+        if task is None:
+            if scripted:
+                raise ValueError(
+                    f"task: the starts hold task {name!r}, which is no packaged task; give its task file with "
+                    f"--task (the scripted checkpoint {scripted[0]} acts on it)"
+                )
+            continue
+        if stored.task_sha256 and stored.task_sha256 != task.digest:
+            where = f"{task.path}" if name in given else f"the packaged task {name!r}"
+            raise ValueError(
+                f"task: {where} is not the task file the starts of {name!r} were recorded with (its sha256 "
+                f"{task.digest[:12]}… differs from the recorded {stored.task_sha256[:12]}…); give that file with --task"
+            )
 
 
 def robot_spec_for(cfg: ImagineConfig, source: StartsSource) -> RobotSpec:
@@ -232,9 +277,10 @@ def config_from_json(d: dict[str, Any], out: str = "") -> ImagineConfig:
 
 def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) -> JobResult:
     """One imagined branch, in whichever process runs it (inline, a worker process, a Ray worker)."""
+    from pilworld.collection.tasks import task_extra, task_for_name
     from pilworld.data.reader import EpisodeStore
     from pilworld.imagine.branch import branch_episode, run_imagined
-    from pilworld.paired.runner import load_model
+    from pilworld.paired.runner import is_server, load_model
     from pilworld.policies.registry import make_policy
     from pilworld.starts.store import start_from_episode
 
@@ -252,19 +298,27 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
         episode_index=job.episode_index,
     )
     task = stored.subtask.task
+    if "tasks" not in w:
+        w["tasks"] = cfg.task_files
+    task_file = task_for_name(task, w["tasks"])
     if task not in w["models"]:
         w["models"][task] = load_model(cfg.paired(task), w["rig"], task)
     model, adapter = w["models"][task]
-    if job.checkpoint not in w["policies"]:
-        w["policies"][job.checkpoint] = make_policy(job.checkpoint, w["rig"], cfg.resolved_spec)
+    # A policy server's client serves every task; a scripted checkpoint acts on the task file it is given.
+    key = (job.checkpoint, "" if is_server(job.checkpoint) else task)
+    if key not in w["policies"]:
+        w["policies"][key] = make_policy(job.checkpoint, w["rig"], cfg.resolved_spec, task=task_file)
+    start = stored.start
+    if cfg.instruction:  # the run's instruction replaces the recorded one (sent to the policy and stored)
+        start = dataclasses.replace(start, subtask=dataclasses.replace(start.subtask, instruction=cfg.instruction))
     try:
         rollout = run_imagined(
             model,
             w["gamma"],
             cfg.resolved_spec,
             w["robot"],
-            w["policies"][job.checkpoint],
-            stored.start,
+            w["policies"][key],
+            start,
             seed=job.seed,
             steps=cfg.steps,
             control_rate_hz=w["rig"].control_rate_hz,
@@ -272,15 +326,19 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
     except PolicyError as err:  # every branch stored so far stays; a rerun resumes from this one (CLI: exit 1)
         # The failed client is closed for good: a worker that lives on (in-process reruns, a Ray actor)
         # must connect afresh for its next job rather than fail it with "connection closed".
-        failed = w["policies"].pop(job.checkpoint, None)
+        failed = w["policies"].pop(key, None)
         close = getattr(failed, "close", None)
         if callable(close):
             with contextlib.suppress(Exception):
                 close()
         raise err.in_context(job.checkpoint, f"{job.pair_id}, imagined branch", RESUME_HINT) from err
+    if task_file is not None:
+        fields = task_extra(task_file)
+    else:  # a task known by its name only (a policy server needs no task file)
+        fields = {"task": task, **({"task_sha256": stored.task_sha256} if stored.task_sha256 else {})}
     extra = {
         "pair": job.pair_id,
-        "sim_task": task,
+        **fields,
         "adapter": adapter or "",
         "world_model": cfg.world_model or "packaged",
         "start_id": stored.start_id,
@@ -335,14 +393,18 @@ def imagine_run(
     rig = RigConfig.load(cfg.rig)
     spec = cfg.resolved_spec
     check_paired_source(cfg, source)
+    check_start_tasks(cfg, source)
     robot = robot_spec_for(cfg, source)
     for task in sorted({s.subtask.task for s in source.starts}):
         load_model(cfg.paired(task), rig, task)  # a model that does not fit the rig fails before anything is written
+    from pilworld.collection.tasks import task_for_name
     from pilworld.policies.registry import make_policy
 
+    given = cfg.task_files
+    first = task_for_name(source.starts[0].subtask.task, given) if source.starts else None
     for ckpt in cfg.checkpoints:
         try:  # a policy server that does not answer fails here, naming it, before anything is written
-            make_policy(ckpt, rig, spec)
+            make_policy(ckpt, rig, spec, task=first)
         except PolicyError as err:
             raise err.in_context(ckpt, "connecting", "nothing was written") from err
     _check_config(root, cfg, write=False)

@@ -67,8 +67,8 @@ class Judge(Protocol):
 
 
 def episode_task(episode: Episode) -> str:
-    """The simulated task of a stored episode (``extra.sim_task``), or "" for data from elsewhere."""
-    return str(episode.extra.get("sim_task", ""))
+    """The task of a stored episode (``extra.task``; older data: ``extra.sim_task``), or "" for data from elsewhere."""
+    return str(episode.extra.get("task") or episode.extra.get("sim_task") or "")
 
 
 def judge_episode(store: EpisodeStore, index: int, judges: Sequence[Judge], rig: RigConfig) -> list[Outcome]:

@@ -1,8 +1,8 @@
 """The pairs of a paired run: which stored episodes are the two branches of one subtask, and their verdicts.
 
 A paired run (``pilworld.paired.runner``, docs/paired.md) stores one episode per branch with
-``extra.pair`` naming the pair (``task/checkpoint/seedS/subtaskK``), ``extra.sim_task`` the simulated
-task and ``checkpoint`` the policy. A pair is *complete* when both its imagined and its real episode
+``extra.pair`` naming the pair (``task/checkpoint/seedS/subtaskK``), ``extra.task`` the task (older runs:
+``extra.sim_task``) and ``checkpoint`` the policy. A pair is *complete* when both its imagined and its real episode
 are stored; only complete pairs are scored (a run still in progress has an incomplete last pair).
 Episodes without ``extra.pair`` (e.g. collected demonstrations in the same folder) are ignored and
 counted.
@@ -25,7 +25,7 @@ class Pair:
     """One subtask run in both branches: the pair id, its setting and the two episode indices."""
 
     pair_id: str
-    task: str  # the simulated task (extra.sim_task), else the instruction
+    task: str  # the task's name (extra.task; older runs extra.sim_task), else the instruction
     checkpoint: str
     imagined: int  # episode index of the imagined branch
     real: int  # episode index of the real branch
@@ -58,8 +58,9 @@ def _extra(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def _task(row: dict[str, Any], extra: dict[str, Any]) -> str:
-    if extra.get("sim_task"):
-        return str(extra["sim_task"])
+    for key in ("task", "sim_task"):  # task files record ``task``; older runs ``sim_task`` only
+        if extra.get(key):
+            return str(extra[key])
     return next((str(t) for t in row.get("tasks") or [] if str(t).strip()), "")
 
 

@@ -30,12 +30,14 @@ class OperatorUnavailableError(RuntimeError):
 
 @runtime_checkable
 class Operator(Protocol):
-    def set_up(self, subtask: Subtask, checkpoint: str) -> None:
-        """Return once the scene of ``subtask`` is set up (objects placed, nothing in the arms' way)."""
+    def set_up(self, subtask: Subtask, checkpoint: str, *, setup: str = "") -> None:
+        """Return once the scene of ``subtask`` is set up (objects placed, nothing in the arms' way);
+        ``setup`` is the task file's ``operator_setup`` note for this subtask ("" when it has none)."""
         ...
 
-    def judge(self, subtask: Subtask, checkpoint: str) -> bool | None:
-        """Success (True), failure (False), or None to leave it to the annotation app."""
+    def judge(self, subtask: Subtask, checkpoint: str, *, success: str = "") -> bool | None:
+        """Success (True), failure (False), or None to leave it to the annotation app; ``success`` is the
+        task file's ``operator_success`` note (what counts as success) for this subtask."""
         ...
 
 
@@ -72,16 +74,20 @@ class ConsoleOperator:
                 "branches stored so far stay, rerun the same command to resume"
             ) from None
 
-    def set_up(self, subtask: Subtask, checkpoint: str) -> None:
+    def set_up(self, subtask: Subtask, checkpoint: str, *, setup: str = "") -> None:
         self.tell(
             f"\n[{checkpoint}] {subtask.task} subtask {subtask.index} (layout seed {subtask.seed}): "
             f"set up the scene for “{subtask.instruction}” with the subtasks before it done."
         )
+        if setup.strip():
+            self.tell(f"Set-up: {setup.strip()}")
         self._ask("Press Enter when the scene is ready and the arms' path is clear (Ctrl-C to stop) ")
 
-    def judge(self, subtask: Subtask, checkpoint: str) -> bool | None:
+    def judge(self, subtask: Subtask, checkpoint: str, *, success: str = "") -> bool | None:
         if not self.judge_outcomes:
             return None
+        if success.strip():
+            self.tell(f"Success means: {success.strip()}")
         for _ in range(self.max_attempts):
             answer = self._ask(f"Did {subtask.task} subtask {subtask.index} succeed? [y]es / [n]o / Enter: skip ")
             a = answer.strip().lower()
@@ -100,10 +106,10 @@ class UnattendedOperator:
     privileged checker judges; no ``operator`` verdict is recorded. Refused on real hardware
     (:class:`~pilworld.paired.stations.HardwareStation`), where nobody would clear the table."""
 
-    def set_up(self, subtask: Subtask, checkpoint: str) -> None:
+    def set_up(self, subtask: Subtask, checkpoint: str, *, setup: str = "") -> None:
         """The scene is already laid out by the fake rig's simulator."""
 
-    def judge(self, subtask: Subtask, checkpoint: str) -> bool | None:
+    def judge(self, subtask: Subtask, checkpoint: str, *, success: str = "") -> bool | None:
         return None  # the simulator's checker (sim_checker) is the run's only judge
 
 

@@ -22,21 +22,26 @@ from pilworld.data.writer import EpisodeWriter
 if TYPE_CHECKING:
     from pilworld.paired.runner import PairedConfig
 
-# Settings that decide the real branch; the world model, its adapter and sampling steps do not.
-REAL_BRANCH_KEYS = ("rig", "seed", "video_mode", "spec")
+# Settings that decide the real branch; the world model, its adapter and sampling steps do not. (The task
+# files must match too: compared by their hashes, task by task.)
+REAL_BRANCH_KEYS = ("rig", "seed", "video_mode", "spec", "instruction", "appearance")
 
 
 class RealBranchSource:
     """The real episodes of a finished (or partly finished) paired run, by pair id."""
 
     def __init__(self, root: str | Path, cfg: PairedConfig) -> None:
-        from pilworld.paired.runner import CONFIG_FILE, settings_diff, stored_config
+        from pilworld.paired.runner import CONFIG_FILE, TASK_HASHES, settings_diff, stored_config
 
         self.root = Path(root)
         path = self.root / CONFIG_FILE
         if not path.is_file():
             raise FileNotFoundError(f"real_from: {self.root} holds no paired run ({CONFIG_FILE} missing)")
-        diff = settings_diff(stored_config(path), json.loads(json.dumps(cfg.to_json())), REAL_BRANCH_KEYS)
+        have = stored_config(path)
+        diff = settings_diff(have, json.loads(json.dumps(cfg.to_json())), REAL_BRANCH_KEYS)
+        hashes = have.get(TASK_HASHES)
+        if isinstance(hashes, dict):
+            diff += [f"task {t.name}" for t in cfg.task_files if hashes.get(t.name, t.digest) != t.digest]
         if diff:
             raise ValueError(
                 f"real_from: {self.root} was run with other settings ({', '.join(diff)}); its real branches "

@@ -14,7 +14,7 @@ from typing import Any
 from tqdm import tqdm
 
 from pilworld.paired.operator import Operator
-from pilworld.paired.runner import PairedConfig, plan_subtasks
+from pilworld.paired.runner import PairedConfig, check_station_tasks, plan_subtasks
 from pilworld.paired.stations import open_station
 from pilworld.starts.store import StartsWriter, start_id
 from pilworld.types import ChunkSpec
@@ -30,22 +30,42 @@ def record_starts(
     spec: ChunkSpec | None = None,
     operator: Operator | None = None,
     progress: bool = True,
+    instruction: str = "",
+    appearance: str = "flat",
 ) -> dict[str, Any]:
-    """Record ``count`` starts per task (subtasks 0, 1, … of layout ``seed``, then ``seed + 1``, …)."""
+    """Record ``count`` starts per task (subtasks 0, 1, … of layout ``seed``, then ``seed + 1``, …).
+
+    ``task`` as a paired run takes it (names, task files, comma-separated, or all); ``instruction`` replaces
+    each task's own in the recorded starts. Everything is checked before the folder is created."""
     from pilworld.collection.collect import dataset_spec
-    from simrig.tasks import make_task
+    from pilworld.config.rig import RigConfig
 
     spec = spec or ChunkSpec()
-    # The paired run's own validation of rig, task names and count (no checkpoint runs here).
-    cfg = PairedConfig(rig=rig, task=task, checkpoints=["-"], subtasks=count, out=str(out), seed=seed, spec=spec)
+    # The paired run's own validation of rig, tasks, instruction and count (no checkpoint runs here).
+    cfg = PairedConfig(
+        rig=rig,
+        task=task,
+        checkpoints=["-"],
+        subtasks=count,
+        out=str(out),
+        seed=seed,
+        spec=spec,
+        instruction=instruction,
+        appearance=appearance,
+    )
+    tasks = cfg.task_files
+    rig_cfg = RigConfig.load(rig)
+    check_station_tasks(rig_cfg, tasks, operator)
+    store_spec = dataset_spec(rig, "lossless", spec)
     plan = []
-    for t in cfg.tasks:
-        info = make_task(t)
-        plan += [p.subtask for p in plan_subtasks(t, count, seed, ["-"], info.num_subtasks, info.instruction)]
+    for t in tasks:
+        plan += [p.subtask for p in plan_subtasks(t.name, count, seed, ["-"], t.num_subtasks, cfg.instruction_for(t))]
     written = 0
     with (
-        open_station(rig, cfg.tasks[0], operator) as station,
-        StartsWriter(out, dataset_spec(rig, "lossless", spec), station.robot.spec, spec, rig=rig) as writer,
+        open_station(rig, {t.name: t for t in tasks}, operator, appearance=appearance) as station,
+        StartsWriter(
+            out, store_spec, station.robot.spec, spec, rig=rig, task_sha256={t.name: t.digest for t in tasks}
+        ) as writer,
     ):
         todo = [s for s in plan if (start_id(s), "") not in writer.stored()]
         bar = tqdm(total=len(plan), initial=len(plan) - len(todo), desc="starts", unit="start", disable=not progress)

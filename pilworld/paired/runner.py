@@ -52,6 +52,7 @@ from pilworld.starts.sources import PAIRED_STARTS
 from pilworld.starts.store import StartsWriter, start_id
 from pilworld.types import ChunkSpec, Start, Subtask
 from pilworld.world_model.base import WorldModel
+from simrig.tasks import Task
 
 ORIGINS = ("imagined", "real")
 JUDGE_ID = "sim_checker"
@@ -90,7 +91,9 @@ class PairedConfig:
     """Everything that decides a paired run's results (stored in ``paired_config.json``)."""
 
     rig: str
-    task: str  # one task, several comma-separated ("sort_cubes,stack_bowls") or "all"
+    # One task, several comma-separated ("sort_cubes,stack_bowls") or "all" (the paper's three); each a
+    # packaged task's name or a task file's path (pilworld.collection.tasks).
+    task: str
     checkpoints: list[str]
     subtasks: int
     out: str
@@ -105,27 +108,36 @@ class PairedConfig:
     real_from: str = ""
     history: bool = True  # False: the no-history ablation at inference (the model's latent memory hidden)
     resize: bool = False  # True: a model of another image size runs through ResizedWorldModel
+    instruction: str = ""  # the instruction given to the policy and recorded; "" = each task file's own
+    appearance: str = "flat"  # the simulated scene's look (SimRobot appearance); a hardware rig is what it is
 
     def __post_init__(self) -> None:
+        from pilworld.collection.tasks import APPEARANCES, check_instruction
+
         if isinstance(self.subtasks, bool) or not isinstance(self.subtasks, int) or self.subtasks < 1:
             raise ValueError(f"subtasks: expected an integer >= 1, got {self.subtasks!r}")
         check_checkpoints(self.checkpoints)
         if self.steps is not None and self.steps < 1:
             raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
+        check_instruction(self.instruction, "instruction")
+        if self.appearance not in APPEARANCES:
+            raise ValueError(f"appearance: expected one of {', '.join(APPEARANCES)}, got {self.appearance!r}")
+
+    @property
+    def task_files(self) -> list[Task]:
+        """The run's tasks, loaded and validated (a one-line ``ValueError`` naming the file otherwise)."""
+        from pilworld.collection.tasks import resolve_tasks
+
+        return resolve_tasks(self.task, what="task")
 
     @property
     def tasks(self) -> list[str]:
-        from simrig.tasks import TASK_NAMES
+        """The names of the run's tasks (they key its pairs)."""
+        return [t.name for t in self.task_files]
 
-        names = (
-            list(TASK_NAMES) if self.task.strip() == "all" else [t.strip() for t in self.task.split(",") if t.strip()]
-        )
-        unknown = [t for t in names if t not in TASK_NAMES]
-        if not names or unknown:
-            raise ValueError(f"task: unknown task(s) {unknown or [self.task]} (known: {', '.join(TASK_NAMES)}, or all)")
-        if len(set(names)) != len(names):
-            raise ValueError(f"task: listed twice: {self.task!r}")
-        return names
+    def instruction_for(self, task: Task) -> str:
+        """The instruction the policy gets (and the episodes record) for ``task``."""
+        return self.instruction or task.instruction
 
     def to_json(self) -> dict[str, Any]:
         d = asdict(self)
@@ -199,6 +211,7 @@ def _set_up_start(
 
 # Settings that may differ on resume: more subtasks extend a run; a copied real branch equals a re-run one.
 _UNCOMPARED = ("subtasks", "real_from")
+TASK_HASHES = "task_sha256"  # paired_config.json: task name → Task.digest of the file the run used
 
 
 def _config_defaults() -> dict[str, Any]:
@@ -229,13 +242,20 @@ def settings_diff(have: dict[str, Any], want: dict[str, Any], keys: Iterable[str
     )
 
 
-def _check_config(root: Path, cfg: PairedConfig, *, write: bool = True) -> None:
-    """Refuse a folder holding a run with other settings; with ``write``, claim the folder for ``cfg``."""
+def _check_config(root: Path, cfg: PairedConfig, tasks: Sequence[Task], *, write: bool = True) -> None:
+    """Refuse a folder holding a run with other settings; with ``write``, claim the folder for ``cfg``.
+
+    Besides the settings, the file hash of each task (``task_sha256``) is stored and compared: a task file
+    edited since the run began is another task."""
     path = root / CONFIG_FILE
     want = json.loads(json.dumps(cfg.to_json()))
+    want[TASK_HASHES] = {t.name: t.digest for t in tasks}
     if path.is_file():
         have = stored_config(path)
-        diff = settings_diff(have, want, (set(have) | set(want)) - set(_UNCOMPARED))
+        keys = (set(have) | set(want)) - set(_UNCOMPARED)
+        if TASK_HASHES not in have:  # a run from before task files: its tasks were the packaged ones
+            keys.discard(TASK_HASHES)
+        diff = settings_diff(have, want, keys)
         if diff:
             raise ValueError(
                 f"{root}: holds a paired run with different settings ({', '.join(diff)}); "
@@ -320,12 +340,49 @@ def _closing(policies: Iterable[Policy]) -> Iterator[None]:
                 close()
 
 
-def connect_policy(checkpoint: str, rig: RigConfig, spec: ChunkSpec) -> Policy:
+def connect_policy(checkpoint: str, rig: RigConfig, spec: ChunkSpec, task: Task | None = None) -> Policy:
     """``make_policy``, with a policy server that cannot be reached named by its checkpoint."""
     try:
-        return make_policy(checkpoint, rig, spec)
+        return make_policy(checkpoint, rig, spec, task=task)
     except PolicyError as err:
         raise err.in_context(checkpoint, "connecting", RESUME_HINT) from err
+
+
+def is_server(checkpoint: str) -> bool:
+    return checkpoint.startswith(("ws://", "wss://"))
+
+
+def connect_policies(
+    checkpoints: Sequence[str], rig: RigConfig, spec: ChunkSpec, tasks: Sequence[Task]
+) -> dict[tuple[str, str], Policy]:
+    """(checkpoint, task name) → its policy: one client per policy server, shared by every task; a scripted
+    checkpoint per task, since it acts on the task file it is given."""
+    out: dict[tuple[str, str], Policy] = {}
+    for c in checkpoints:
+        shared = connect_policy(c, rig, spec, tasks[0])
+        for k, t in enumerate(tasks):
+            out[(c, t.name)] = shared if k == 0 or is_server(c) else connect_policy(c, rig, spec, t)
+    return out
+
+
+def check_station_tasks(
+    rig: RigConfig, tasks: Sequence[Task], operator: Operator | None, *, what: str = "task"
+) -> None:
+    """Refuse a task the rig cannot run: the simulated rig builds every scene (a task file without objects
+    cannot be built); on a hardware rig the operator lays each one out, but an unattended fake rig has
+    nobody to do that for a task its simulator cannot build."""
+    from pilworld.collection.tasks import not_simulated, require_simulated
+    from pilworld.paired.operator import UnattendedOperator
+
+    if rig.hardware is None:
+        require_simulated(tasks, what=what)
+    elif isinstance(operator, UnattendedOperator):
+        for t in tasks:
+            if not t.simulated:
+                raise ValueError(
+                    f"--unattended: {not_simulated(t)}, so nobody would lay it out or judge it; run it with an "
+                    "operator at a terminal"
+                )
 
 
 def paired_run(
@@ -342,19 +399,22 @@ def paired_run(
     (default: the terminal).
     """
     from pilworld.collection.collect import dataset_spec
-    from simrig.tasks import make_task
+    from pilworld.collection.tasks import task_extra
 
     root = Path(cfg.out)
-    restore_run(root)  # a damaged table or setting of a stored run comes back from its backup first
     rig = RigConfig.load(cfg.rig)
-    tasks = cfg.tasks  # validates the names
-    models = {t: load_model(cfg, rig, t) for t in tasks}  # fails before anything is written
+    tasks = cfg.task_files  # loads and validates every task file
+    check_station_tasks(rig, tasks, operator)
+    if rig.hardware is not None and cfg.appearance != "flat":
+        raise ValueError(f"appearance: rig {rig.name!r} is a hardware rig; {cfg.appearance!r} is for the simulated rig")
+    by_name = {t.name: t for t in tasks}
+    restore_run(root)  # a damaged table or setting of a stored run comes back from its backup first
+    models = {t.name: load_model(cfg, rig, t.name) for t in tasks}  # fails before anything is written
     store_spec = dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)
-    _check_config(root, cfg, write=False)
+    _check_config(root, cfg, tasks, write=False)
     plan: list[PairedSubtask] = []
     for t in tasks:
-        spec_t = make_task(t)
-        plan += plan_subtasks(t, cfg.subtasks, cfg.seed, cfg.checkpoints, spec_t.num_subtasks, spec_t.instruction)
+        plan += plan_subtasks(t.name, cfg.subtasks, cfg.seed, cfg.checkpoints, t.num_subtasks, cfg.instruction_for(t))
     slots = stored_slots(root)
     done = stored_branches(root)
     redo = damaged_branches(root)  # stored branches whose files were lost: run again into their old slots
@@ -370,10 +430,12 @@ def paired_run(
             f"real_from: {cfg.real_from} lacks the real branch of {len(missing)} pair(s), e.g. {missing[0]}"
         )
     # A hardware station checks its operator here (none at a terminal: a typed error), before any motion.
-    station_ = open_station(cfg.rig, tasks[0], operator)
-    _check_config(root, cfg)  # claims the folder only now that every check passed
+    station_ = open_station(cfg.rig, by_name, operator, appearance=cfg.appearance)
     gamma = ControlVideo.from_rig(rig, cfg.spec)
-    policies = {c: connect_policy(c, rig, cfg.spec) for c in cfg.checkpoints}
+    # A policy server is reached (and a scripted checkpoint built) before the folder is claimed.
+    by_task = connect_policies(cfg.checkpoints, rig, cfg.spec, tasks)
+    policies = {c: by_task[(c, tasks[0].name)] for c in cfg.checkpoints}
+    _check_config(root, cfg, tasks)  # claims the folder only now that every check passed
     store_metadata(root, policies)
     t_start = time.monotonic()
     records: list[dict[str, Any]] = []
@@ -381,7 +443,7 @@ def paired_run(
         total=len(plan), initial=len(plan) - len(todo), desc="paired subtasks", unit="pair", disable=not progress
     )
     with (
-        _closing(policies.values()),
+        _closing({id(p): p for p in by_task.values()}.values()),
         station_ as station,
         EpisodeWriter(root, store_spec) as writer,
         StartsWriter(
@@ -390,6 +452,7 @@ def paired_run(
             station.robot.spec,
             cfg.spec,
             rig=cfg.rig,
+            task_sha256={t.name: t.digest for t in tasks},
         ) as starts,
     ):
         robot = station.robot
@@ -399,10 +462,10 @@ def paired_run(
             have = set(done.get(pair.pair_id, set()))
             sub = pair.subtask
             model, adapter = models[sub.task]
-            policy = policies[pair.checkpoint]
+            policy = by_task[(pair.checkpoint, sub.task)]
             extra = {
                 "pair": pair.pair_id,
-                "sim_task": sub.task,
+                **task_extra(by_name[sub.task]),
                 "adapter": adapter or "",
                 "world_model": cfg.world_model or "packaged",
             }

@@ -19,7 +19,9 @@ on real hardware.
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Protocol
@@ -31,8 +33,25 @@ from pilworld.config.rig import RigConfig
 from pilworld.data.outcomes import Outcome
 from pilworld.paired.operator import OPERATOR_JUDGE, ConsoleOperator, Operator, UnattendedOperator
 from pilworld.types import ChunkSpec, Observation, Start, Subtask
+from simrig.tasks import Task, load_task
 
 SIM_JUDGE = "sim_checker"
+
+
+def _task_map(tasks: str | Task | Sequence[str | Task] | Mapping[str, Task] | None) -> dict[str, Task]:
+    """Tasks by name (a run's tasks are keyed by their names; see pilworld.collection.tasks)."""
+    if tasks is None:
+        return {}
+    if isinstance(tasks, Mapping):
+        return dict(tasks)
+    items = [tasks] if isinstance(tasks, (str, Task)) else list(tasks)
+    loaded = [load_task(t) for t in items]
+    return {t.name: t for t in loaded}
+
+
+def _task_of(tasks: Mapping[str, Task], subtask: Subtask) -> Task:
+    """The task a subtask belongs to: one of the run's, else the packaged task of that name."""
+    return tasks.get(subtask.task) or load_task(subtask.task)
 
 
 class Station(Protocol):
@@ -72,19 +91,34 @@ class SimStation:
     order = ("imagined", "real")  # the simulated clock stands still while the world model runs
     shared_starts = True  # a layout seed lays out the same scene, bit for bit, whichever checkpoint runs
 
-    def __init__(self, rig_path: str | Path, task: str) -> None:
+    def __init__(
+        self,
+        rig_path: str | Path,
+        task: str | Task | Sequence[str | Task] | Mapping[str, Task],
+        *,
+        appearance: str = "flat",
+    ) -> None:
         from simrig.robot import SimRobot
 
-        self._robot = SimRobot(rig_path, task)
+        self.tasks = _task_map(task)
+        if not self.tasks:
+            raise ValueError("task: a simulated station needs a task")
+        self._robot = SimRobot(rig_path, next(iter(self.tasks.values())), appearance=appearance)
 
     @property
     def robot(self) -> Robot:
         return self._robot
 
     def start(self, subtask: Subtask, checkpoint: str, spec: ChunkSpec) -> Start:
-        return self._robot.reset(
-            seed=subtask.seed, subtask=subtask.index, task=subtask.task, history=spec.history, stride=spec.stride
+        start = self._robot.reset(
+            seed=subtask.seed,
+            subtask=subtask.index,
+            task=_task_of(self.tasks, subtask),
+            history=spec.history,
+            stride=spec.stride,
         )
+        # The subtask as planned: its instruction may be the run's (--instruction) rather than the task file's.
+        return dataclasses.replace(start, subtask=subtask)
 
     def verdicts(self, subtask: Subtask, checkpoint: str, episode_index: int, num_frames: int) -> list[Outcome]:
         check = self._robot.check_subtask(subtask.index)
@@ -108,9 +142,17 @@ class HardwareStation:
     shared_starts = False  # the operator sets each pair's scene up anew
 
     def __init__(
-        self, rig_path: str | Path, operator: Operator | None = None, *, seed: int = 0, settle_s: float = 0.5
+        self,
+        rig_path: str | Path,
+        operator: Operator | None = None,
+        *,
+        seed: int = 0,
+        settle_s: float = 0.5,
+        tasks: str | Task | Sequence[str | Task] | Mapping[str, Task] | None = None,
     ) -> None:
         self.rig_path = str(rig_path)
+        # The run's tasks by name (a subtask of another task is looked up among the packaged ones).
+        self.tasks = _task_map(tasks)
         self.rig = RigConfig.load(rig_path)
         if self.rig.hardware is None:
             raise ValueError(f"rig {self.rig.name!r} has no 'hardware:' section; use SimStation for a simulated rig")
@@ -172,9 +214,12 @@ class HardwareStation:
         return np.asarray(self._robot.state(), dtype=np.float64)
 
     def start(self, subtask: Subtask, checkpoint: str, spec: ChunkSpec) -> Start:
-        if self.fake is not None:  # the simulated scene stands in for the person setting it up
-            self.fake.reset(subtask.task, subtask.seed, subtask.index)
-        self.operator.set_up(subtask, checkpoint)
+        task = _task_of(self.tasks, subtask)
+        if self.fake is not None and task.simulated:  # the simulated scene stands in for the person setting it up
+            from pilworld.collection.tasks import task_ref
+
+            self.fake.reset(task_ref(task), subtask.seed, subtask.index)
+        self.operator.set_up(subtask, checkpoint, setup=task.subtask(subtask.index).operator_setup)
         pose = self.reset_poses.get(checkpoint)
         self._robot.move_to(self.start_pose() if pose is None else pose, speed=self.hw.start_speed)
         # History: H_h frames at the policy's frame stride while the robot holds still at the start.
@@ -191,18 +236,33 @@ class HardwareStation:
         # gripper where it is would leave it on the object.
         time.sleep(self.settle_s)
         out: list[Outcome] = []
-        if self.fake is not None:
+        task = _task_of(self.tasks, subtask)
+        if self.fake is not None and task.simulated:  # a hardware-only task: the fake's scene is not this task's
             check = self.fake.check()
             out.append(Outcome(episode_index, SIM_JUDGE, "sim_state", bool(check["success"]), num_frames))
-        verdict = self.operator.judge(subtask, checkpoint)
+        verdict = self.operator.judge(subtask, checkpoint, success=task.subtask(subtask.index).operator_success)
         if verdict is not None:
             out.append(Outcome(episode_index, OPERATOR_JUDGE, "human", verdict, num_frames))
         return out
 
 
-def open_station(rig_path: str | Path, task: str, operator: Operator | None = None) -> SimStation | HardwareStation:
-    """The station for ``rig_path``: hardware (or its fakes) when the file has a ``hardware:`` section."""
+def open_station(
+    rig_path: str | Path,
+    task: str | Task | Sequence[str | Task] | Mapping[str, Task],
+    operator: Operator | None = None,
+    *,
+    appearance: str = "flat",
+) -> SimStation | HardwareStation:
+    """The station for ``rig_path``: hardware (or its fakes) when the file has a ``hardware:`` section.
+
+    ``task`` is the run's task or tasks (names, files or loaded tasks); on a hardware rig a task file
+    without objects is enough: the operator lays out each subtask and judges it."""
     rig = RigConfig.load(rig_path)
     if rig.hardware is not None:
-        return HardwareStation(rig_path, operator)
-    return SimStation(rig_path, task)
+        if appearance != "flat":
+            raise ValueError(
+                f"appearance: rig {rig.name!r} is a hardware rig; its scene is what stands on the table "
+                f"(--appearance {appearance} is for the simulated rig)"
+            )
+        return HardwareStation(rig_path, operator, tasks=task)
+    return SimStation(rig_path, task, appearance=appearance)

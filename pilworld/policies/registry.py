@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pilworld.config.rig import RigConfig
 from pilworld.policies.base import Policy
 from pilworld.types import ChunkSpec
+
+if TYPE_CHECKING:
+    from simrig.tasks import Task
 
 
 def policy_names() -> list[str]:
@@ -53,8 +58,14 @@ def policy_timeouts() -> tuple[float, float]:
     return out[0], out[1]
 
 
-def make_policy(name: str, rig: RigConfig, spec: ChunkSpec | None = None) -> Policy:
-    """``ws://host:port`` → an openpi websocket client; a scripted checkpoint name → that checkpoint."""
+def make_policy(
+    name: str, rig: RigConfig, spec: ChunkSpec | None = None, task: Task | str | Path | None = None
+) -> Policy:
+    """``ws://host:port`` → an openpi websocket client; a scripted checkpoint name → that checkpoint.
+
+    ``task`` (a loaded task, a packaged name or a task file) is the task a scripted checkpoint acts on,
+    whatever the instruction's wording; without it (or for a hardware-only task, which it cannot act on)
+    it recognises a packaged task by its instruction. A policy server ignores it."""
     spec = spec or ChunkSpec()
     if name.startswith(("ws://", "wss://")):
         from pilworld.policies.openpi.client import OpenPiClient
@@ -71,4 +82,10 @@ def make_policy(name: str, rig: RigConfig, spec: ChunkSpec | None = None) -> Pol
             f"checkpoint {name!r}: not a scripted checkpoint ({', '.join(policy_names())}) nor an openpi server "
             "address (ws://host:port)"
         )
-    return ScriptedPolicy(rig, name, horizon=spec.horizon)
+    if task is not None:
+        from simrig.tasks import load_task
+
+        task = load_task(task)
+        if not task.simulated:
+            task = None
+    return ScriptedPolicy(rig, name, horizon=spec.horizon, task=task)

@@ -118,7 +118,7 @@ def read_run_outcomes(
             if pair_id in labelled:
                 overlapping += 1
                 continue
-            task = str(extra.get("sim_task") or row.get("task") or "")
+            task = str(extra.get("task") or extra.get("sim_task") or row.get("task") or "")
             ckpt = str(row.get("checkpoint") or "")
             value = float(verdicts[i].success)
             by_ckpt[ckpt].unlabeled.append(value)

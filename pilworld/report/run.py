@@ -28,7 +28,7 @@ class PairInfo:
 
     pair_id: str
     episodes: dict[str, int] = field(default_factory=dict)  # origin → episode index
-    task: str = ""  # the simulated task name (extra.sim_task), else the instruction
+    task: str = ""  # the task's name (extra.task; older runs extra.sim_task), else the instruction
     instruction: str = ""
     checkpoint: str = ""
     seed: int = 0
@@ -108,7 +108,8 @@ def read_run(run_dir: str | Path) -> RunData:
         index = min(info.episodes.values())
         labels = store.labels(index, store.frame_table(index))
         info.instruction = str(labels["task"])
-        info.task = str(labels["extra"].get("sim_task") or info.pair_id.split("/")[0] or info.instruction)
+        extra = labels["extra"]
+        info.task = str(extra.get("task") or extra.get("sim_task") or info.pair_id.split("/")[0] or info.instruction)
         info.checkpoint = str(labels["checkpoint"])
         info.seed = int(labels["seed"])
         info.subtask_index = int(labels["subtask_index"])

@@ -12,7 +12,8 @@ one episode per start — the history frames oldest first, then the start frame 
 episode's ``extra.start`` names the subtask (task, index, instruction, layout seed), the index of the
 start frame and every frame's timestamp; ``extra.start_id`` is ``task/seed{S}/subtask{K}`` and
 ``extra.start_checkpoint`` the checkpoint whose real branch began from it ("" when the scene is the same
-for every checkpoint, as on the simulated rig).
+for every checkpoint, as on the simulated rig); ``extra.task`` and ``extra.task_sha256`` name the task and
+the hash of the task file the scene was laid out from.
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ class StoredStart:
     start: Start
     source: str  # where it was read: folder and episode index
     episode_index: int = -1  # the episode it was read from (-1: not read from a folder)
+    task_sha256: str = ""  # the hash of the task file the start was recorded with ("" when not recorded)
 
     @property
     def subtask(self) -> Subtask:
@@ -78,8 +80,10 @@ def robot_spec_from_json(d: dict[str, Any]) -> RobotSpec:
     )
 
 
-def start_episode(start: Start, *, checkpoint: str = "") -> Episode:
-    """``start`` as one stored episode: history frames, then the start frame (the robot holds still)."""
+def start_episode(start: Start, *, checkpoint: str = "", task_sha256: str = "") -> Episode:
+    """``start`` as one stored episode: history frames, then the start frame (the robot holds still).
+
+    ``task_sha256`` is the hash of the task file the scene was laid out from (``Task.digest``)."""
     frames = [*start.history, start.observation]
     views = list(start.observation.views)
     state = np.stack([np.asarray(o.state, dtype=np.float32) for o in frames])
@@ -96,6 +100,8 @@ def start_episode(start: Start, *, checkpoint: str = "") -> Episode:
         extra={
             "start_id": start_id(sub),
             "start_checkpoint": checkpoint,
+            "task": sub.task,
+            **({"task_sha256": task_sha256} if task_sha256 else {}),
             "start": {
                 "task": sub.task,
                 "index": sub.index,
@@ -129,15 +135,17 @@ def start_from_episode(
             seed=int(meta["seed"]),
         )
         checkpoint = str(ep.extra.get("start_checkpoint", ""))
+        digest = str(ep.extra.get("task_sha256") or "")
         first = 0  # every history frame it was recorded with, as the paired run's branches saw them
     else:
         frame = history if start_frame is None else start_frame
         if not 0 <= frame < ep.length:
             raise StartsError(f"{source}: start frame {frame} is outside the episode's {ep.length} frames")
         stamps = [i / fps for i in range(ep.length)]
-        task = str(ep.extra.get("sim_task") or ep.extra.get("task") or ep.task)
+        task = str(ep.extra.get("task") or ep.extra.get("sim_task") or ep.task)
         sub = Subtask(task=task, index=ep.subtask_index, instruction=ep.task, seed=ep.seed)
         checkpoint = ""
+        digest = str(ep.extra.get("task_sha256") or "")
         first = max(0, frame - history)
     if frame < 1 and history > 0:
         raise StartsError(
@@ -149,13 +157,22 @@ def start_from_episode(
         observation=_observation(ep, frame, stamps[frame]),
         history=tuple(_observation(ep, i, stamps[i]) for i in range(first, frame)),
     )
-    return StoredStart(start_id(sub), checkpoint, start, source, episode_index)
+    return StoredStart(start_id(sub), checkpoint, start, source, episode_index, digest)
 
 
 class StartsWriter:
     """Appends starts to a folder (created on first use); a start already stored is kept, not rewritten."""
 
-    def __init__(self, root: str | Path, spec: DatasetSpec, robot: RobotSpec, chunk: ChunkSpec, *, rig: str) -> None:
+    def __init__(
+        self,
+        root: str | Path,
+        spec: DatasetSpec,
+        robot: RobotSpec,
+        chunk: ChunkSpec,
+        *,
+        rig: str,
+        task_sha256: Mapping[str, str] | None = None,
+    ) -> None:
         if spec.video_mode != "lossless":
             raise ValueError(f"starts: stored losslessly so they replay bit for bit, not {spec.video_mode!r}")
         self.root = Path(root)
@@ -172,6 +189,7 @@ class StartsWriter:
             if diff:
                 raise StartsError(f"{self.root}: holds starts recorded with other settings ({', '.join(diff)})")
         self._spec = spec
+        self._hashes = dict(task_sha256 or {})  # task name → the hash of its file, recorded with each start
         self._writer: EpisodeWriter | None = None
         self._index: dict[tuple[str, str], int] | None = None
         self._redo: dict[tuple[str, str], int] = {}  # damaged stored starts: rewritten in place by add()
@@ -223,7 +241,7 @@ class StartsWriter:
             write_json(self.root / META_FILE, self.meta)
             back_up(self.root, [META_FILE])
             self._writer = EpisodeWriter(self.root, self._spec)
-        episode = start_episode(start, checkpoint=checkpoint)
+        episode = start_episode(start, checkpoint=checkpoint, task_sha256=self._hashes.get(start.subtask.task, ""))
         slot = self._redo.pop(key, None)
         if slot is None:
             slot = slots.get(key)

@@ -108,17 +108,18 @@ class TrainData:
 
     @staticmethod
     def _task_names(episodes: list[dict[str, object]]) -> list[str]:
-        """The simulated task name of each episode when recorded by our collector, else its instruction."""
+        """The task name of each episode when recorded by our collector (``extra.task``, older data
+        ``extra.sim_task``), else its instruction."""
         out = []
         for ep in episodes:
             extra = ep.get("extra")
             name = None
-            if isinstance(extra, dict):
-                name = extra.get("sim_task")
-            elif isinstance(extra, str) and '"sim_task"' in extra:
+            if isinstance(extra, str) and ('"task"' in extra or '"sim_task"' in extra):
                 import json
 
-                name = json.loads(extra).get("sim_task")
+                extra = json.loads(extra)
+            if isinstance(extra, dict):
+                name = extra.get("task") or extra.get("sim_task")
             out.append(str(name or TrainData._instruction(ep)))
         return out
 
