@@ -63,10 +63,12 @@ def run_demo(
     seed: int = DEMO_SEED0,
     progress: bool = True,
     workers: int | None = None,
+    appearance: str = "flat",
 ) -> dict[str, Any]:
     """Run (or resume) the demo into ``out``; returns the metrics and where everything went.
 
-    ``workers`` processes judge the episodes (default: one per CPU).
+    ``workers`` processes judge the episodes (default: one per CPU); ``appearance`` is the simulated rig's
+    look (``flat`` until a world model trained on the varied look ships).
     """
     from pilworld.config.rig import RigConfig
     from pilworld.judges.base import judge_dataset, unjudged_episodes
@@ -87,6 +89,7 @@ def run_demo(
         out=str(root),
         seed=seed,
         spec=ChunkSpec(rounds=size.rounds),
+        appearance=appearance,
     )
     run = paired_run(cfg, progress=progress)
     stages["paired_runs_s"] = time.monotonic() - t0
@@ -111,6 +114,7 @@ def run_demo(
         "metrics_json": str(root / "metrics.json"),
         "report_html": str(report),
         "size": {"subtasks": size.subtasks, "checkpoints": list(size.checkpoints), "rounds": size.rounds},
+        "appearance": appearance,
         "pairs": run["pairs_planned"],
         "branches_run": run["branches_run"],
         "seconds_per_subtask": run["seconds_per_subtask"],

@@ -27,6 +27,13 @@ def register(sub: Any) -> None:
     p.add_argument("--seed", type=int, default=None, help="first layout seed (default 5000000, unseen in training)")
     p.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     p.add_argument("--workers", type=int, default=None, help="processes judging the episodes (default: CPUs)")
+    p.add_argument(
+        "--appearance",
+        choices=("flat", "varied"),
+        default="flat",
+        help="the simulated rig's look: flat (default, the shipped world model's training look) or varied "
+        "(textures, random light, camera noise; docs/sim_rig.md)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.set_defaults(handler=_demo)
 
@@ -43,6 +50,7 @@ def _demo(args: argparse.Namespace) -> int:
         seed=DEMO_SEED0 if args.seed is None else args.seed,
         progress=not args.json,
         workers=args.workers,
+        appearance=args.appearance,
     )
     print(summary_table(result["metrics"]))
     st = result["stages"]

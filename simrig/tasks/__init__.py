@@ -17,9 +17,10 @@ from pathlib import Path
 
 import yaml
 
-from pilworld.config.loader import ConfigError, format_validation_error
+from pilworld.config.loader import ConfigError
 from simrig.tasks.base import Layout, ObjectPose, PlacementCheck
-from simrig.tasks.checks import check_task
+from simrig.tasks.checks import build_problems, check_task
+from simrig.tasks.errors import validation_lines
 from simrig.tasks.mesh import MeshError
 from simrig.tasks.schema import TaskFile
 from simrig.tasks.task import Task
@@ -93,6 +94,10 @@ def _read(path: Path) -> tuple[dict[str, object], bytes]:
         mark = getattr(err, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
         raise TaskFileError([f"{path}: not valid YAML{where}: {getattr(err, 'problem', err)}"]) from None
+    if data is None:
+        raise TaskFileError(
+            [f"{path}: the file is empty (a task file is a YAML mapping: name, instruction, subtasks, …)"]
+        )
     if not isinstance(data, dict):
         raise TaskFileError([f"{path}: expected a mapping (name, instruction, subtasks, …), got {type(data).__name__}"])
     return data, raw
@@ -105,13 +110,15 @@ def _problems(path: Path) -> tuple[list[str], Task | None]:
     try:
         spec = TaskFile.model_validate(data, context={"base_dir": path.resolve().parent})
     except ValidationError as err:
-        return format_validation_error(str(path), err).splitlines(), None
+        return validation_lines(str(path), err), None
+    built = [f"{path}: field '{p.field}': {p.message}" for p in build_problems(spec)]
+    if built:
+        return built, None
     try:
         task = Task(spec, path=path, digest=_digest(raw, spec))
-    except (MeshError, ValueError) as exc:
-        field = next((f"objects.{k}" for k, o in enumerate(spec.objects) if o.name in str(exc)), "objects")
-        return [f"{path}: field '{field}': {exc}"], None
-    lines = [f"{path}: field '{p.field}': {p.message}" for p in check_task(spec, task.geometry)]
+    except (MeshError, ValueError) as exc:  # not expected after build_problems; still one line
+        return [f"{path}: field 'objects': {exc}"], None
+    lines = [f"{path}: field '{p.field}': {p.message}" for p in check_task(spec, task.geometry, draw=task.layout)]
     return lines, (None if lines else task)
 
 

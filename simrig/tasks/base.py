@@ -42,6 +42,14 @@ class Layout:
     goals: Mapping[str, tuple[float, float, float]]
 
 
+class LayoutError(RuntimeError):
+    """A scatter group that could not be drawn (``group``: its index in the task file's layout)."""
+
+    def __init__(self, group: int, message: str) -> None:
+        self.group = group
+        super().__init__(message)
+
+
 @dataclass(frozen=True)
 class PlacementCheck:
     """Whether a subtask's object is where it must be, with a human-readable reason."""

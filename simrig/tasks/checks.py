@@ -7,12 +7,14 @@ Each problem is one :class:`Problem` (the field's path and what is wrong, with w
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from simrig.tasks import schema as s
-from simrig.tasks.base import sample_positions
+from simrig.tasks.base import LayoutError
+from simrig.tasks.mesh import MeshError
 from simrig.tasks.predicates import placement
-from simrig.tasks.shapes import Geometry
+from simrig.tasks.shapes import Geometry, build_object
 
 # The simulated table (simrig.scene: centre x −0.05, half sizes 0.55 × 0.6) and the gripper's opening.
 TABLE_X = (-0.6, 0.5)
@@ -27,6 +29,37 @@ class Problem:
     message: str
 
 
+Add = Callable[[str, str], None]  # records one problem: (field, message)
+
+
+def build_problems(task: s.TaskFile) -> list[Problem]:
+    """Objects that cannot be built: a mesh that is unreadable, open, too large or too detailed; an image
+    that cannot be read as a texture. One problem per object, naming the field that holds the file."""
+    problems = []
+    for k, obj in enumerate(task.objects):
+        try:
+            build_object(obj)
+        except MeshError as exc:
+            problems.append(Problem(f"objects.{k}.file", str(exc)))
+        except ValueError as exc:
+            field = "texture.image" if obj.texture is not None and obj.texture.image else ""
+            problems.append(Problem(f"objects.{k}" + (f".{field}" if field else ""), str(exc)))
+    return problems
+
+
+def size_field(obj: s.ObjectDef) -> str:
+    """The field that sets how wide ``obj`` is across (where a too-wide object is fixed)."""
+    if isinstance(obj, s.BoxObject | s.OpenBoxObject):
+        return "size"
+    if isinstance(obj, s.BowlObject):
+        return "top_radius"
+    if isinstance(obj, s.CompoundObject):
+        return f"parts.{obj.grasp_part}"
+    if isinstance(obj, s.MeshObject):
+        return "scale"
+    return "radius"
+
+
 def _walk(goal: s.Predicate, path: str) -> list[tuple[s.Predicate, str]]:
     out = [(goal, path)]
     kind = goal.kind
@@ -36,10 +69,16 @@ def _walk(goal: s.Predicate, path: str) -> list[tuple[s.Predicate, str]]:
     return out
 
 
-def check_task(task: s.TaskFile, geometry: dict[str, Geometry]) -> list[Problem]:
-    """Every cross-field problem of ``task`` (``geometry``: the built objects' shapes)."""
+def check_task(
+    task: s.TaskFile, geometry: dict[str, Geometry], draw: Callable[[int], object] | None = None
+) -> list[Problem]:
+    """Every cross-field problem of ``task`` (``geometry``: the built objects' shapes; ``draw(seed)``: the
+    simulator's layout, tried for :data:`LAYOUT_SEEDS` seeds once everything else is valid)."""
     problems: list[Problem] = []
-    add = lambda field, msg: problems.append(Problem(field, msg))  # noqa: E731
+
+    def add(field: str, message: str) -> None:
+        problems.append(Problem(field, message))
+
     objects = [o.name for o in task.objects]
     regions = [r.name for r in task.regions]
     fixtures = [f.name for f in task.fixtures]
@@ -59,23 +98,24 @@ def check_task(task: s.TaskFile, geometry: dict[str, Geometry]) -> list[Problem]
             )
     if not task.objects:
         for k, sub in enumerate(task.subtasks):
-            if sub.object is not None or sub.goal is not None:
-                add(
-                    f"subtasks.{k}",
-                    "names an object or a goal but the task has no objects (a hardware-only task "
-                    "describes subtasks with operator_setup and operator_success)",
-                )
+            for key in ("object", "goal"):
+                if getattr(sub, key) is not None:
+                    add(
+                        f"subtasks.{k}.{key}",
+                        f"a task without objects (hardware only) has no {key} to name; describe the subtask "
+                        "with operator_setup and operator_success, or add the objects",
+                    )
         if task.layout is not None:
             add("layout", "a task without objects has nothing to lay out; remove 'layout' or add objects")
         return problems
     _check_subtasks(task, objects, regions, geometry, add)
-    _check_layout(task, objects, add)
+    _check_layout(task, objects, geometry, add, problems, draw if not problems else None)
     return problems
 
 
 def _check_subtasks(
-    task: s.TaskFile, objects: list[str], regions: list[str], geometry: dict[str, Geometry], add
-) -> None:  # type: ignore[no-untyped-def]
+    task: s.TaskFile, objects: list[str], regions: list[str], geometry: dict[str, Geometry], add: Add
+) -> None:
     for k, sub in enumerate(task.subtasks):
         where = f"subtasks.{k}"
         if sub.object is None:
@@ -91,8 +131,9 @@ def _check_subtasks(
             continue
         g = geometry.get(sub.object)
         if g is not None and g.grasp.kind == "pinch" and g.grasp.width > MAX_GRASP_WIDTH:
+            i = objects.index(sub.object)
             add(
-                f"objects.{objects.index(sub.object)}",
+                f"objects.{i}.{size_field(task.objects[i])}",
                 f"{sub.object} is {g.grasp.width * 1000:.0f} mm across its "
                 f"narrowest side; the gripper holds at most {MAX_GRASP_WIDTH * 1000:.0f} mm",
             )
@@ -106,14 +147,14 @@ def _check_subtasks(
             )
 
 
-def _check_predicate(  # type: ignore[no-untyped-def]
+def _check_predicate(
     pred: s.Predicate,
     path: str,
     subject: str,
     objects: list[str],
     regions: list[str],
     geometry: dict[str, Geometry],
-    add,
+    add: Add,
 ) -> None:
     kind = pred.kind
     if kind in ("all", "any"):
@@ -153,8 +194,16 @@ def _check_predicate(  # type: ignore[no-untyped-def]
             )
 
 
-def _check_layout(task: s.TaskFile, objects: list[str], add) -> None:  # type: ignore[no-untyped-def]
+def _check_layout(
+    task: s.TaskFile,
+    objects: list[str],
+    geometry: dict[str, Geometry],
+    add: Add,
+    problems: list[Problem],
+    draw: Callable[[int], object] | None,
+) -> None:
     layout = task.layout
+    problems_before = len(problems)
     if layout is None:
         add("layout", "a task with objects needs a layout (scatter groups) to place them")
         return
@@ -171,6 +220,8 @@ def _check_layout(task: s.TaskFile, objects: list[str], add) -> None:  # type: i
                 add(f"layout.scatter.{g}.{axis}", f"{list(rng)} reaches off the table ({axis} in {list(table)})")
     for k, st in enumerate(layout.stacked):
         target = st.on if st.on is not None else st.inside
+        if st.inside is not None and st.inside in geometry and geometry[st.inside].container is None:
+            add(f"layout.stacked.{k}.inside", f"{st.inside} is not a container (bowl, cup or open_box)")
         if st.object not in objects:
             add(f"layout.stacked.{k}.object", f"no object called {st.object!r} (objects: {', '.join(objects)})")
         elif st.object in placed:
@@ -184,31 +235,19 @@ def _check_layout(task: s.TaskFile, objects: list[str], add) -> None:  # type: i
     missing = [n for n in objects if n not in placed]
     if missing:
         add("layout", f"{', '.join(missing)} placed by no scatter group or stacked entry")
-    # Draw the scatter groups for a few seeds, as the simulator will: a layout that cannot fit is refused here.
-    import numpy as np
-
+    if draw is None or problems_before != len(problems):
+        return
+    # Lay the task out for a few seeds, exactly as the simulator will: a layout that cannot fit is refused here.
     for seed in range(LAYOUT_SEEDS):
-        rng = np.random.default_rng([seed, 0])
-        done: list[tuple[float, float, float]] = []
-        for g, group in enumerate(layout.scatter):
-            keep = [(d.centre[0], d.centre[1], d.radius) for d in (*layout.keep_out, *group.keep_out)]
-            keep += [(x, y, group.min_distance) for x, y, _ in done]
-            try:
-                pts = sample_positions(
-                    rng,
-                    len(group.objects),
-                    x_range=group.x,
-                    y_range=group.y,
-                    min_distance=group.min_distance,
-                    keep_out=tuple(keep),
-                )
-            except RuntimeError:
-                area = (group.x[1] - group.x[0]) * (group.y[1] - group.y[0])
-                add(
-                    f"layout.scatter.{g}",
-                    f"cannot place {len(group.objects)} objects {group.min_distance} m apart in "
-                    f"x {list(group.x)}, y {list(group.y)} ({area:.3f} m², keep-out discs included): widen the area "
-                    "or lower min_distance",
-                )
-                return
-            done += [(x, y, 0.0) for x, y in pts]
+        try:
+            draw(seed)
+        except LayoutError as exc:
+            group = layout.scatter[exc.group]
+            area = (group.x[1] - group.x[0]) * (group.y[1] - group.y[0])
+            add(
+                f"layout.scatter.{exc.group}",
+                f"cannot place {len(group.objects)} objects {group.min_distance} m apart in "
+                f"x {list(group.x)}, y {list(group.y)} ({area:.3f} m², keep-out discs and earlier groups "
+                f"included; seed {seed}): widen the area or lower min_distance",
+            )
+            return

@@ -53,7 +53,7 @@ def load_mesh_parts(path: str, scale: float = 1.0) -> MeshParts:
     mesh = loaded.copy()
     if len(mesh.faces) > MAX_FACES:
         raise MeshError(f"mesh {path} has {len(mesh.faces)} triangles (at most {MAX_FACES}); simplify it")
-    mesh.apply_scale(scale)
+    mesh.apply_scale(scale)  # type: ignore[no-untyped-call]
     extent = mesh.extents
     if float(np.max(extent)) > MAX_EXTENT:
         raise MeshError(

@@ -81,7 +81,8 @@ class Evaluator:
             results = [self(child, poses, subject) for child in goal.any]
             ok = [r for r in results if r.in_place]
             return ok[0] if ok else PlacementCheck(False, " and ".join(r.reason for r in results))
-        return getattr(self, f"_{kind}")(getattr(goal, kind), poses, subject)
+        check: PlacementCheck = getattr(self, f"_{kind}")(getattr(goal, kind), poses, subject)
+        return check
 
     def _bottom_z(self, name: str, poses: Mapping[str, ObjectPose]) -> float:
         return float(poses[name].xyz[2]) - self.geometry[name].bottom

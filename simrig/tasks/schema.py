@@ -59,7 +59,7 @@ def resolve_file(value: str, info: ValidationInfo, kinds: tuple[str, ...], what:
     if not path.is_absolute() and base is not None:
         path = Path(base) / path
     if path.suffix.lower() not in kinds:
-        raise ValueError(f"{what} must be a {' or '.join(k.lstrip('.').upper() for k in kinds)} file, got {value!r}")
+        raise ValueError(f"{what} must be an {' or '.join(k.lstrip('.').upper() for k in kinds)} file, got {value!r}")
     if not path.is_file():
         raise ValueError(f"{what} not found: {path}")
     return str(path)
@@ -438,10 +438,7 @@ class Predicate(StrictModel):
     @classmethod
     def _one_key(cls, data: Any) -> Any:
         if not isinstance(data, dict) or len(data) != 1:
-            got = list(data) if isinstance(data, dict) else type(data).__name__
-            raise ValueError(
-                f"a goal is a mapping with exactly one predicate (one of {', '.join(PREDICATES)}), got {got}"
-            )
+            raise ValueError(f"a goal is a mapping with exactly one predicate (one of {', '.join(PREDICATES)})")
         ((key, value),) = data.items()
         if key not in PREDICATES:
             raise ValueError(f"unknown predicate {key!r} (allowed: {', '.join(PREDICATES)})")

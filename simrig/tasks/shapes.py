@@ -165,15 +165,19 @@ def _primitive_geom(
     return GeomSpec(shape, size, (rgba[0], rgba[1], rgba[2], 1.0), pos=pos, quat=quat)
 
 
-def _part_dims(part: s.Part | s._ObjectBase) -> dict[str, float]:
+def _part_dims(part: s.Part | s.CylinderObject | s.SphereObject | s.CapsuleObject) -> dict[str, float]:
+    """Half-sizes (box) or radius and half length (cylinder, capsule) or radius (sphere) of a primitive."""
+    size: tuple[float, float, float] | None = getattr(part, "size", None)
+    radius: float | None = getattr(part, "radius", None)
     if part.shape == "box":
-        x, y, z = part.size  # type: ignore[union-attr]
-        return {"hx": x / 2, "hy": y / 2, "hz": z / 2}
-    if part.shape == "cylinder":
-        return {"radius": part.radius, "half": part.height / 2}  # type: ignore[union-attr,operator]
-    if part.shape == "capsule":
-        return {"radius": part.radius, "half": part.length / 2}  # type: ignore[union-attr,operator]
-    return {"radius": part.radius}  # type: ignore[union-attr]
+        assert size is not None
+        return {"hx": size[0] / 2, "hy": size[1] / 2, "hz": size[2] / 2}
+    assert radius is not None
+    along: float | None = getattr(part, "height" if part.shape == "cylinder" else "length", None)
+    if part.shape in ("cylinder", "capsule"):
+        assert along is not None
+        return {"radius": radius, "half": along / 2}
+    return {"radius": radius}
 
 
 def build_object(obj: s.ObjectDef) -> BuiltObject:
@@ -181,9 +185,10 @@ def build_object(obj: s.ObjectDef) -> BuiltObject:
     rgb = obj.colour if obj.colour is not None else (0.6, 0.6, 0.6)
     assets = Assets()
     material = None
-    if obj.texture is not None:
-        assets, material, rgb = texture_assets(obj.name, obj.texture, obj.colour)
     spec, geometry = _shape(obj, rgb)
+    if obj.texture is not None:
+        extent = max(2 * geometry.radius, geometry.height)
+        assets, material, rgb = texture_assets(obj.name, obj.texture, obj.colour, extent=extent)
     if material is not None:  # the texture carries the colour; white keeps it unchanged
         geoms = tuple(dataclasses.replace(g, material=material, rgba=(1.0, 1.0, 1.0, 1.0)) for g in spec.geoms)
         spec = dataclasses.replace(spec, geoms=geoms)
@@ -231,10 +236,11 @@ def _shape(obj: s.ObjectDef, rgb: tuple[float, float, float]) -> tuple[ObjectSpe
         quat = _axis_quat(obj.axis) if isinstance(obj, s.CylinderObject | s.CapsuleObject) else (1.0, 0.0, 0.0, 0.0)
         geom = _primitive_geom(obj.shape, dims, rgba, (0.0, 0.0, 0.0), quat)
         zmin, zmax, radius, base = _extent(obj.shape, dims, quat)
-        lying = not isinstance(obj, s.SphereObject) and obj.axis != "z"
+        axis = "z" if isinstance(obj, s.SphereObject) else obj.axis
+        lying = axis != "z"
         width = 2 * dims["radius"]
         sym = math.pi if lying else 0.0
-        long_yaw = 0.0 if (lying and obj.axis == "x") else math.pi / 2
+        long_yaw = 0.0 if (lying and axis == "x") else math.pi / 2
         grasp = _pinch(-zmin, zmax, width, sym, long_yaw)
         spec = ObjectSpec(obj.name, (geom,), obj.mass, obj.friction, bottom=-zmin, top=zmax)
         return spec, Geometry(-zmin, zmax, 0.0, base, radius, grasp)

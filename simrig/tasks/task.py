@@ -20,7 +20,7 @@ import numpy as np
 
 from simrig.objects import FixtureSpec, GeomSpec, ObjectSpec
 from simrig.tasks import schema as s
-from simrig.tasks.base import Layout, ObjectPose, PlacementCheck, sample_positions
+from simrig.tasks.base import Layout, LayoutError, ObjectPose, PlacementCheck, sample_positions
 from simrig.tasks.predicates import Evaluator, Placement, placement
 from simrig.tasks.shapes import BuiltObject, Geometry, build_object
 from simrig.tasks.textures import texture_assets
@@ -101,13 +101,16 @@ class Task:
         rng = np.random.default_rng([seed, self.salt])
         poses: dict[str, ObjectPose] = {}
         rest: dict[str, float] = {}
-        for group in layout.scatter:
+        for g, group in enumerate(layout.scatter):
             keep_out = [(d.centre[0], d.centre[1], d.radius) for d in (*layout.keep_out, *group.keep_out)]
             keep_out += [(p.xyz[0], p.xyz[1], group.min_distance) for p in poses.values()]
             n = len(group.objects)
-            xy = sample_positions(
-                rng, n, x_range=group.x, y_range=group.y, min_distance=group.min_distance, keep_out=tuple(keep_out)
-            )
+            try:
+                xy = sample_positions(
+                    rng, n, x_range=group.x, y_range=group.y, min_distance=group.min_distance, keep_out=tuple(keep_out)
+                )
+            except RuntimeError as exc:
+                raise LayoutError(g, f"task {self.name!r}, layout.scatter.{g}, seed {seed}: {exc}") from None
             order = rng.permutation(n) if group.shuffle else np.arange(n)
             lo, hi = (math.radians(v) for v in group.yaw_deg)
             for name, k in zip(group.objects, order, strict=True):

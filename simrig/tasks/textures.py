@@ -1,9 +1,12 @@
 """Textures of a task file: an image file or a procedural pattern, as MuJoCo texture and material assets.
 
 Objects get ``cube`` textures (MuJoCo maps them onto every primitive, cylinders and spheres included; a
-``2d`` texture only maps well onto flat faces); ``texuniform`` with ``texrepeat = 1/scale`` keeps one
-period of the pattern ``scale`` metres long whatever the object's size. Procedural patterns are drawn
-here with numpy and encoded as PNG, so a task file needs no image to be textured.
+``2d`` texture only maps well onto flat faces). MuJoCo ignores ``texrepeat`` for cube textures and wraps
+the image once across each face of the geom, so the image is tiled here instead: ``round(extent / scale)``
+periods across the object's largest extent keep one period about ``scale`` metres long whatever the
+object's size. Fixtures (flat, ``2d``) use ``texuniform`` with ``texrepeat = 1/scale``, which MuJoCo
+honours for 2-D textures. Procedural patterns are drawn here with numpy and encoded as PNG, so a task
+file needs no image to be textured.
 """
 
 from __future__ import annotations
@@ -86,17 +89,48 @@ def png_bytes(image: NDArray[np.uint8]) -> bytes:
     return bytes(buf.tobytes())
 
 
-def texture_assets(name: str, texture: Texture, colour: RGB | None, kind: str = "cube") -> tuple[Assets, str, RGB]:
-    """(assets, material name, mean colour) for ``name``'s texture."""
+MAX_TILES = 16  # periods across one face of an object's cube texture
+MAX_TILED = 512  # pixels on a side of a tiled cube texture
+
+
+def tiles(extent: float, scale: float) -> int:
+    """Pattern periods across an object ``extent`` metres wide for a period of ``scale`` metres (1…16)."""
+    return max(1, min(MAX_TILES, round(extent / scale)))
+
+
+def tiled(image: NDArray[np.uint8], n: int) -> NDArray[np.uint8]:
+    """``image`` repeated ``n`` × ``n`` times, shrunk to at most :data:`MAX_TILED` pixels on a side."""
+    if n <= 1:
+        return image
+    out = np.asarray(np.tile(image, (n, n, 1)), dtype=np.uint8)
+    if max(out.shape[:2]) > MAX_TILED:
+        f = MAX_TILED / max(out.shape[:2])
+        size = (max(1, round(out.shape[1] * f)), max(1, round(out.shape[0] * f)))
+        out = np.asarray(cv2.resize(out, size, interpolation=cv2.INTER_AREA), dtype=np.uint8)
+    return out
+
+
+def mean_colour(texture: Texture, colour: RGB | None, name: str) -> RGB:
+    """The mean colour of ``name``'s texture (what finds the object in an image)."""
+    mean = texture_image(texture, colour, seed=sum(name.encode())).reshape(-1, 3).mean(axis=0) / 255.0
+    return (float(mean[0]), float(mean[1]), float(mean[2]))
+
+
+def texture_assets(
+    name: str, texture: Texture, colour: RGB | None, kind: str = "cube", extent: float | None = None
+) -> tuple[Assets, str, RGB]:
+    """(assets, material name, mean colour) for ``name``'s texture; ``extent``: an object's largest size [m]."""
     image = texture_image(texture, colour, seed=sum(name.encode()))
-    mean = image.reshape(-1, 3).mean(axis=0) / 255.0
+    mean = mean_colour(texture, colour, name)
     tex, mat, fname = f"tex_{name}", f"mat_{name}", f"tex_{name}.png"
-    repeat = 1.0 / texture.scale
-    xml = (
-        f'<texture name="{tex}" type="{kind}" file="{fname}"/>',
-        f'<material name="{mat}" texture="{tex}" texrepeat="{repeat:.6g} {repeat:.6g}" texuniform="true"/>',
-    )
-    return Assets(xml, ((fname, png_bytes(image)),)), mat, (float(mean[0]), float(mean[1]), float(mean[2]))
+    if kind == "cube":  # wrapped once per face: tile the image itself
+        image = tiled(image, tiles(extent if extent is not None else texture.scale, texture.scale))
+        material = f'<material name="{mat}" texture="{tex}" texuniform="true"/>'
+    else:
+        repeat = 1.0 / texture.scale
+        material = f'<material name="{mat}" texture="{tex}" texrepeat="{repeat:.6g} {repeat:.6g}" texuniform="true"/>'
+    xml = (f'<texture name="{tex}" type="{kind}" file="{fname}"/>', material)
+    return Assets(xml, ((fname, png_bytes(image)),)), mat, mean
 
 
 def is_file_texture(texture: Texture) -> bool:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -257,17 +258,19 @@ class TaskKnowledge:
         return (float(p[0]), float(p[1]), g.height), yaw, (float(-r * d[0]), float(-r * d[1]))
 
 
-def knowledge_for(task: Task | str) -> TaskKnowledge:
+def knowledge_for(task: Task | str | Path) -> TaskKnowledge:
     """The knowledge of a task (a loaded task, a packaged task's name or a task file's path)."""
     return TaskKnowledge(load_task(task))
 
 
 def knowledge_for_instruction(instruction: str) -> TaskKnowledge:
     """The packaged task whose instruction this is (case and surrounding space ignored)."""
-    from simrig.tasks import packaged_tasks
+    from simrig.tasks import PAPER_TASKS, packaged_tasks
 
     want = instruction.strip().lower()
-    for name in packaged_tasks():
+    # The paper's tasks first: loading every packaged file (meshes, textures) on a policy's first call
+    # would delay its first chunk.
+    for name in (*PAPER_TASKS, *(n for n in packaged_tasks() if n not in PAPER_TASKS)):
         task = load_task(name)
         if task.instruction.strip().lower() == want:
             return TaskKnowledge(task)

@@ -42,6 +42,7 @@ APPROACH_Z = 0.12  # TCP height for moving over objects [m]
 NOMINAL_SPEED = 0.6  # peak Cartesian TCP speed of the best checkpoint [m/s]
 HOLD_MIN, HOLD_MAX = 0.06, 0.85  # measured grip between these: the fingers rest on an object
 FINGERTIP_BELOW_TCP = 0.018  # the fingertips reach this far below the TCP [m]
+FINGER_THICKNESS = 0.01  # each finger pad, outward from the gap between the fingers [m]
 
 
 def _home() -> NDArray[np.float64]:
@@ -242,6 +243,12 @@ class ScriptedPolicy:
         release_z = intent.release_z
         grasp = know.geometry(intent.obj).grasp
         member = know.member(intent.obj)
+        inside = grasp.kind == "pinch" and member is not None and member.kind == "inside"
+        if inside and member is not None and not self._fingers_fit(side, know, member.target):
+            # Into a container narrower than the open fingers: let go with the fingertips above its rim.
+            # Opened inside it, the fingers would push its wall and drag the object out again.
+            rim = know.task.done_heights()[member.target] + know.geometry(member.target).height
+            release_z = max(release_z, rim + FINGERTIP_BELOW_TCP + 0.008)
         if grasp.kind == "rim" and member is not None:
             base_xy = getattr(self.rig.kinematics, side).T_rig_base[:2, 3]
             (gx, gy, gz), yaw, off = know.rim_grasp(intent.obj, np.array([gx, gy]), base_xy)
@@ -300,6 +307,12 @@ class ScriptedPolicy:
             # started in the previous chunk must not be undone by reopening).
             wps = wps[2:] if abs(pos[2] - gz) < 0.01 else wps[1:]
         return planner.plan(q, grip if aligned else 1.0, wps + carry, self.horizon)
+
+    def _fingers_fit(self, side: str, know: TaskKnowledge, container: str) -> bool:
+        """Whether the fully open fingers fit inside ``container``'s opening, with a centimetre to spare."""
+        inside = know.geometry(container).container
+        half_open = getattr(self.rig.arms, side).gripper.max_opening_m / 2
+        return inside is not None and inside.opening >= half_open + FINGER_THICKNESS + 0.01
 
     def _held_offset(
         self, know: TaskKnowledge, intent: Intent, tcp: NDArray[np.float64], yaw: float
