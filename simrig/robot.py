@@ -256,7 +256,13 @@ class SimRobot:
         return self._target.astype(np.float32)
 
     def reset(
-        self, seed: int = 0, subtask: int = 0, *, task: str | Path | Task | None = None, history: int = 5, stride: int = 3
+        self,
+        seed: int = 0,
+        subtask: int = 0,
+        *,
+        task: str | Path | Task | None = None,
+        history: int = 5,
+        stride: int = 3,
     ) -> Start:
         """Lay out the task for ``seed`` with subtasks before ``subtask`` done; return the shared start.
 

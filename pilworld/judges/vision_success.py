@@ -108,7 +108,7 @@ class VisionSuccessJudge:
             # so the hallucination detector's answer and the other judges' verdicts still count.
             return Verdict(
                 success=None,
-                reason=f"no image-only success verdict: the reference judge knows the paper's tasks, not {context.task!r}",
+                reason=f"no success verdict: the reference judge knows the paper's tasks, not {context.task!r}",
             )
         goal = spec.goal(int(episode.subtask_index))
         return _EpisodeJudgement(self, episode, context, spec, goal).verdict()
