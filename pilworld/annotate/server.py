@@ -308,6 +308,19 @@ class Handler(BaseHTTPRequestHandler):
         self._send(HTTPStatus.OK, data, content_type, headers)
 
 
+def _has_judges(db: Path) -> bool:
+    """Whether the annotation database ``db`` exists and holds at least one judge (read only)."""
+    if not db.is_file():
+        return False
+    import sqlite3
+
+    try:
+        with contextlib.closing(sqlite3.connect(f"{db.resolve().as_uri()}?mode=ro&immutable=1", uri=True)) as con:
+            return bool(con.execute("SELECT COUNT(*) FROM judges").fetchone()[0] > 0)
+    except sqlite3.Error:
+        return True  # let the store say what is wrong with it
+
+
 class AnnotationServer:
     """The app for one run folder: ``start()`` / ``stop()`` in tests, ``serve_forever()`` in the CLI.
 
@@ -334,16 +347,26 @@ class AnnotationServer:
             raise ValueError(f"--port: expected 0..65535, got {port!r}")
         self.run_dir = Path(run_dir)
         open_dataset(self.run_dir)  # fail on a folder that is not a dataset before creating the database in it
-        if judges is None and not (self.run_dir / DB_FILE).is_file():
+        if judges is None and not _has_judges(self.run_dir / DB_FILE):
+            # none yet, or a first start stopped before it made them: the database stays as it is
             raise ValueError(f"--judges: {self.run_dir} has no judges yet; say how many (--judges N)")
-        self.store = AnnotationStore(self.run_dir)
-        self.tokens: dict[int, str] = {}
-        if judges is not None:
-            self.tokens = self.store.ensure_judges(judges, new_tokens=new_tokens)
-        self.app = App(self.run_dir, self.store)
-        handler = type("BoundHandler", (Handler,), {"app": self.app})
-        self.httpd = ThreadingHTTPServer((host, port), handler)
+        # The port is taken before the database is touched: a port in use leaves the run folder as it was.
+        handler = type("BoundHandler", (Handler,), {})
+        try:
+            self.httpd = ThreadingHTTPServer((host, port), handler)
+        except OSError as err:
+            raise ValueError(f"--port: cannot listen on {host}:{port} ({err.strerror or err})") from None
         self.httpd.daemon_threads = True
+        try:
+            self.store = AnnotationStore(self.run_dir)
+            self.tokens: dict[int, str] = {}
+            if judges is not None:
+                self.tokens = self.store.ensure_judges(judges, new_tokens=new_tokens)
+            self.app = App(self.run_dir, self.store)
+        except BaseException:
+            self.httpd.server_close()
+            raise
+        handler.app = self.app  # type: ignore[attr-defined]
         self._thread: threading.Thread | None = None
 
     @property

@@ -23,7 +23,13 @@ def register(sub: Any) -> None:
 
     s = verbs.add_parser("serve", help="start the judging web app (Ctrl-C stops it and exports)")
     s.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run folder (episode store)")
-    s.add_argument("--judges", type=int, default=None, metavar="N", help="number of judges (needed the first time)")
+    s.add_argument(
+        "--judges",
+        type=int,
+        default=None,
+        metavar="N",
+        help="number of judges (needed the first time) [1..100: each judge is a person with their own token]",
+    )
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     s.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 = any free port)")
     s.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host (plain HTTP!)")
@@ -58,9 +64,9 @@ def _print_export(run_dir: Path, report: bool = True) -> None:
 
 def _serve(args: argparse.Namespace) -> int:
     from pilworld.annotate.server import AnnotationServer
+    from pilworld.cli.checks import JUDGES, check_count
 
-    if args.judges is not None and args.judges < 1:
-        raise ValueError(f"--judges: expected an integer >= 1, got {args.judges}")
+    check_count(args.judges, "--judges", JUDGES)
     server = AnnotationServer(
         args.run_dir,
         judges=args.judges,
@@ -126,6 +132,12 @@ def _status(args: argparse.Namespace) -> int:
 
     total = open_dataset(args.run_dir).num_episodes
     store = open_existing(args.run_dir)
-    for judge, done in store.counts().items():
+    counts = store.counts()
+    if not counts:  # a first start stopped before its judges were made
+        print(
+            f"{args.run_dir}: no judges yet (a first `pilworld annotate serve` was stopped early); "
+            "start one with `pilworld annotate serve RUN_DIR --judges N`"
+        )
+    for judge, done in counts.items():
         print(f"Judge {judge}: labelled {done} of {total}")
     return 0

@@ -15,10 +15,13 @@ def load_npy(path: str | Path, *, what: str) -> NDArray[np.float64]:
         raise FileNotFoundError(f"{what}: file not found: {path}")
     if path.suffix.lower() != ".npy":
         raise ValueError(f"{what}: expected a .npy file, got {path}")
+    if path.stat().st_size == 0:
+        raise ValueError(f"{what}: {path} is empty (0 bytes); expected a .npy array")
     try:
         arr: NDArray[np.float64] = np.load(path, allow_pickle=False)
-    except ValueError as err:
-        raise ValueError(f"{what}: {path} is not a plain numeric .npy array ({err})") from None
+    except (ValueError, EOFError, OSError) as err:  # cut short, not .npy, or a pickle
+        detail = " ".join(str(err).split()) or "cut short"
+        raise ValueError(f"{what}: {path} is not a plain numeric .npy array ({detail})") from None
     if not np.issubdtype(arr.dtype, np.number) or np.issubdtype(arr.dtype, np.complexfloating):
         raise ValueError(f"{what}: {path} holds dtype {arr.dtype}; expected real numbers")
     if not np.all(np.isfinite(arr)):

@@ -136,7 +136,12 @@ def register(sub: Any) -> None:
     sm.add_argument(
         "--task", default="sort_cubes", help="task (name or task file) for the speed figures (default sort_cubes)"
     )
-    sm.add_argument("--subtasks", type=int, default=0, help="also measure success rates over N subtask starts per task")
+    sm.add_argument(
+        "--subtasks",
+        type=int,
+        default=None,
+        help="also measure success rates over N subtask starts per task [1..1,000] (default: speed figures only)",
+    )
     sm.add_argument(
         "--tasks",
         default="all",
@@ -144,7 +149,9 @@ def register(sub: Any) -> None:
     )
     sm.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
     sm.add_argument("--checkpoints", default="all", help="comma-separated scripted checkpoints (default all)")
-    sm.add_argument("--workers", type=int, default=None, help="processes for the success rates (default: CPUs)")
+    sm.add_argument(
+        "--workers", type=int, default=None, help="processes for the success rates (default: CPUs) [1..256]"
+    )
     sm.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     sm.set_defaults(handler=_sim)
 
@@ -471,9 +478,12 @@ def _names(value: str, all_names: list[str], what: str) -> list[str]:
 
 def _sim(args: argparse.Namespace) -> int:
     from pilworld.bench.sim import run_sim_bench
+    from pilworld.cli.checks import TRY_SUBTASKS, WORKERS, check_count
     from pilworld.collection.tasks import require_simulated, resolve_tasks
     from pilworld.policies.scripted import CHECKPOINTS
 
+    check_count(args.subtasks, "--subtasks", TRY_SUBTASKS)
+    check_count(args.workers, "--workers", WORKERS)
     (task,) = resolve_tasks([args.task], what="--task")
     tasks = resolve_tasks(args.tasks, what="--tasks")
     require_simulated([task], what="--task")
@@ -482,7 +492,7 @@ def _sim(args: argparse.Namespace) -> int:
     result = run_sim_bench(
         str(args.rig),
         task=task,
-        subtasks=args.subtasks,
+        subtasks=args.subtasks or 0,
         tasks=list(tasks),
         appearance=args.appearance,
         checkpoints=ckpts,

@@ -83,6 +83,9 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from pilworld.io.run_folder import check_out_file
+
+    check_out_file(args.out, "--out", suffixes=(".mp4", ".png"))  # before any work: a name it can write
     style = Style.parse(args.style)
     rig = RigConfig.load(args.rig)
     if args.size:
@@ -95,6 +98,10 @@ def run(args: argparse.Namespace) -> int:
 
     actions = _load_chunks(args.actions, spec)
     previous = _load_previous(args)
+    limits = rig.robot_spec()
+    check_joint_limits(actions, limits, "--actions", args.actions)
+    if previous is not None:
+        check_joint_limits(previous, limits, "--previous-state", args.previous_state)
 
     # Rounds chain: round r starts where round r−1's last stride-aligned action left the arms.
     stride_actions = gamma.stride_aligned(actions)
@@ -124,6 +131,25 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary))
     return 0
+
+
+LIMIT_SLACK = 0.05  # rad (or gripper fraction) beyond a joint's limit still drawn: servo overshoot, rounding
+
+
+def check_joint_limits(values: np.ndarray, spec: Any, what: str, path: Path) -> None:
+    """Refuse joint values outside the rig's limits (radians, grippers 0..1): a chunk in degrees or a
+    scaled one draws no marker at all, silently."""
+    lower = np.asarray(spec.lower) - LIMIT_SLACK
+    upper = np.asarray(spec.upper) + LIMIT_SLACK
+    bad = np.argwhere((values < lower) | (values > upper))
+    if bad.size:
+        index = tuple(int(i) for i in bad[0])
+        j = index[-1]
+        raise ValueError(
+            f"{what}: {path}: {spec.joint_names[j]} is {values[index]:.6g} at index {index}, outside the rig's "
+            f"limits [{spec.lower[j]:.4g}, {spec.upper[j]:.4g}] ({len(bad)} value(s) out of range; radians, "
+            "grippers 0..1)"
+        )
 
 
 def _load_chunks(path: Path, spec: ChunkSpec) -> np.ndarray:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -39,8 +40,15 @@ def register(sub: Any) -> None:
 
 def _info(args: argparse.Namespace) -> int:
     from pilworld.data.info import dataset_info
+    from pilworld.data.reader import DamagedDatasetError, DatasetError
 
-    summary = dataset_info(args.path)
+    try:
+        summary = dataset_info(args.path)
+    except DatasetError as err:  # a dataset whose metadata is damaged or missing: exit 1, as documented
+        if not isinstance(err, DamagedDatasetError) and not _dataset_parts(args.path):
+            raise  # not a dataset at all: bad input, exit 2
+        print(f"pilworld: error: {' '.join(str(err).split())}", file=sys.stderr)
+        return 1
     cams = ", ".join(f"{v} {c['width']}x{c['height']}" for v, c in summary["cameras"].items())
     origins = ", ".join(f"{o}: {d['episodes']}" for o, d in summary["by_origin"].items()) or "none"
     print(
@@ -59,12 +67,22 @@ def _info(args: argparse.Namespace) -> int:
     return 1 if damage["problems"] else 0
 
 
-def _verify(args: argparse.Namespace) -> int:
-    import sys
+def _dataset_parts(path: Path) -> bool:
+    """Whether ``path`` holds parts of a dataset (its tables or data), so a missing file is damage."""
+    return (path / "meta" / "episodes").is_dir() or (path / "data").is_dir()
 
+
+def _verify(args: argparse.Namespace) -> int:
+    from pilworld.data.reader import DamagedDatasetError
     from pilworld.data.verify import verify
 
-    report = verify(args.path, hash_files=not args.sizes_only, progress=not args.no_progress and sys.stderr.isatty())
+    try:
+        report = verify(
+            args.path, hash_files=not args.sizes_only, progress=not args.no_progress and sys.stderr.isatty()
+        )
+    except DamagedDatasetError as err:  # damaged metadata: exit 1 (damaged), not 2 (not a dataset)
+        print(f"pilworld: error: {' '.join(str(err).split())}", file=sys.stderr)
+        return 1
     for problem in report.problems:
         print(f"DAMAGED {problem.describe()}")
     print(report.summary())

@@ -33,6 +33,12 @@ def add_convert_parser(data_subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--mapping", type=Path, metavar="MAP.yaml", help="cameras → views, state/action keys, resize, task")
     p.add_argument("--video-mode", choices=VIDEO_MODES, default="h264", help="output video codec (default h264)")
     p.add_argument("--task", metavar="TEXT", help="instruction for episodes without one (required for ALOHA HDF5)")
+    p.add_argument(
+        "--append",
+        action="store_true",
+        help="add SOURCE's episodes after those of the sources OUT already holds (OUT/conversion.json lists them); "
+        "without it, OUT takes one source: a rerun resumes it, another source is refused",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.set_defaults(handler=_convert)
     return p
@@ -45,7 +51,15 @@ def _convert(args: argparse.Namespace) -> int:
     mapping = load_mapping(args.mapping) if args.mapping is not None else ConvertMapping()
     if args.task is not None:
         mapping = mapping.with_overrides(task=args.task)
-    summary = convert(args.source, args.out, mapping, video_mode=args.video_mode, fmt=args.fmt, progress=not args.json)
+    summary = convert(
+        args.source,
+        args.out,
+        mapping,
+        video_mode=args.video_mode,
+        fmt=args.fmt,
+        progress=not args.json,
+        append=args.append,
+    )
     views = ", ".join(f"{v} {h}x{w}" for v, (h, w) in summary["views"].items())
     print(
         f"convert: {summary['converted']} episodes ({summary['converted_frames']} frames) from {summary['format']} "

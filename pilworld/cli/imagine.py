@@ -56,7 +56,9 @@ def register(sub: Any) -> None:
         "PPI++; and how many imagined ones are worth running.",
     )
     t.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a pilot paired run")
-    t.add_argument("--half-width", type=float, required=True, help="target interval half-width, e.g. 0.05")
+    t.add_argument(
+        "--half-width", type=float, required=True, help="target interval half-width, e.g. 0.05 [0.0001, 0.5)"
+    )
     t.add_argument("--alpha", type=float, default=0.05, help="1 - confidence level (default 0.05)")
     t.add_argument("--checkpoint", default=None, help="plan for one checkpoint (default: each, and all together)")
     t.add_argument("--json", action="store_true", help="print the plans as one JSON object on the last line")
@@ -64,13 +66,18 @@ def register(sub: Any) -> None:
 
 
 def _imagine(args: argparse.Namespace) -> int:
+    from pilworld.cli.checks import ROUNDS, SAMPLING_STEPS, STARTS, WORKERS, check_count
     from pilworld.imagine.runner import ImagineConfig, imagine_run
     from pilworld.types import ChunkSpec
 
-    if args.rounds is not None and args.rounds < 1:
-        raise ValueError(f"--rounds: expected at least 1, got {args.rounds}")
-    if args.workers < 1:
-        raise ValueError(f"--workers: expected at least 1, got {args.workers}")
+    check_count(args.rounds, "--rounds", ROUNDS)
+    check_count(args.steps, "--steps", SAMPLING_STEPS)
+    check_count(args.count, "--count", STARTS)
+    check_count(args.workers, "--workers", WORKERS)
+    check_count(args.judge_workers, "--judge-workers", WORKERS)
+    checkpoints = [c.strip() for c in args.checkpoints.split(",")]
+    if not all(checkpoints):
+        raise ValueError(f"--checkpoints: expected checkpoint names separated by commas, got {args.checkpoints!r}")
     from pilworld.collection.tasks import check_instruction, resolve_tasks
 
     if args.task.strip():
@@ -78,7 +85,7 @@ def _imagine(args: argparse.Namespace) -> int:
     check_instruction(args.instruction, "--instruction")
     cfg = ImagineConfig(
         starts=str(args.starts),
-        checkpoints=[c.strip() for c in args.checkpoints.split(",")],
+        checkpoints=checkpoints,
         out=str(args.out),
         rig=str(args.rig) if args.rig else "",
         world_model=args.world_model,
@@ -134,12 +141,22 @@ def judge_run(root: Path, *, workers: int | None, progress: bool) -> dict[str, A
     return {"episodes": len(todo), "success_rate": {c: sum(v) / len(v) for c, v in sorted(per.items())}}
 
 
+MIN_HALF_WIDTH = 1e-4
+
+
 def _plan_trials(args: argparse.Namespace) -> int:
     from pilworld.ppi.outcomes import read_run_outcomes
     from pilworld.ppi.planning import pilot_agreement, plan_trials
 
+    if not MIN_HALF_WIDTH <= args.half_width < 0.5:
+        raise ValueError(
+            f"--half-width: expected a number in [{MIN_HALF_WIDTH:g}, 0.5) (a success rate's interval half-width; "
+            f"below {MIN_HALF_WIDTH:g} no number of trials is practical), got {args.half_width:g}"
+        )
+    if not 1e-6 <= args.alpha < 1:
+        raise ValueError(f"--alpha: expected a number in [1e-06, 1) (1 - confidence level), got {args.alpha:g}")
     if not (args.run_dir / "paired_config.json").is_file():
-        raise FileNotFoundError(f"{args.run_dir}: not a paired run (paired_config.json missing)")
+        raise FileNotFoundError(f"RUN_DIR: {args.run_dir}: not a paired run (paired_config.json missing)")
     outcomes = read_run_outcomes(args.run_dir, imagined=[])
     groups = {c: (o.y, o.f) for c, o in sorted(outcomes.by_checkpoint.items()) if o.y}
     if args.checkpoint is not None:

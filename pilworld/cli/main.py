@@ -17,7 +17,9 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import traceback
 from collections.abc import Sequence
+from pathlib import Path
 
 from pilworld import __version__
 from pilworld.cli import (
@@ -75,25 +77,54 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     debug = bool(args.debug) or os.environ.get("PILWORLD_DEBUG", "").strip() not in ("", "0")
     try:
+        _check_path_arguments(args)
         return int(args.handler(args))
     # Run failures, exit 1 — a policy, a missing operator, or the rig (a stale observation, a protective stop:
     # the drivers have already stopped the arms). Caught before ValueError/OSError, which are bad input.
     except (PolicyError, OperatorUnavailableError, RobotError, CollectionStoppedError) as err:
-        if debug:
-            raise
-        print(f"pilworld: error: {_one_line(err)}", file=sys.stderr)
-        return 1
+        return _report(err, 1, debug)
     except (ValueError, FileNotFoundError, OSError) as err:
-        if debug:
-            raise
-        print(f"pilworld: error: {_one_line(err)}", file=sys.stderr)
-        return 2
+        return _report(err, 2, debug)
     except KeyboardInterrupt:
         print("pilworld: interrupted", file=sys.stderr)
         return 130
 
 
+def _check_path_arguments(args: argparse.Namespace) -> None:
+    """Every path argument must be text the libraries can take: OpenCV, for one, crashes (SIGSEGV) on a
+    byte that is not UTF-8. Refused before any command runs, naming the flag."""
+    from pilworld.io.run_folder import check_path_text
+
+    for dest, value in vars(args).items():
+        for item in value if isinstance(value, list | tuple) else [value]:
+            if isinstance(item, Path | str):
+                positional = dest in _POSITIONAL or (dest == "out" and getattr(args, "command", "") == "data")
+                flag = dest.upper() if positional else f"--{dest.replace('_', '-')}"
+                check_path_text(item, flag)
+
+
+_POSITIONAL = {"run_dir", "path", "source", "dataset", "run", "files", "file"}
+
+
+def _report(err: BaseException, status: int, debug: bool) -> int:
+    """The error as one line on stderr (with ``--debug``, its traceback first); the exit status stays the
+    documented one either way."""
+    if debug:
+        traceback.print_exception(err)
+    print(f"pilworld: error: {_one_line(err)}", file=sys.stderr)
+    return status
+
+
 def _one_line(err: BaseException) -> str:
+    filename, strerror = getattr(err, "filename", None), getattr(err, "strerror", None)
+    if not isinstance(err, OSError) and filename is not None and strerror:  # PyAV's FFmpegError (a ValueError)
+        return f"{os.fsdecode(filename)}: {' '.join(str(strerror).split())} (damaged or not a media file)"
+    if isinstance(err, OSError) and err.filename is not None and err.strerror:
+        # "[Errno 17] File exists: 'x'" reads as "x: File exists" (PyAV's errors too: the file first)
+        names = [os.fsdecode(err.filename)] + ([os.fsdecode(err.filename2)] if err.filename2 is not None else [])
+        return f"{' -> '.join(names)}: {' '.join(err.strerror.split())}"
+    if isinstance(err, OSError) and err.errno is not None and err.strerror:
+        return " ".join(err.strerror.split())
     return " ".join(str(err).split()) or type(err).__name__
 
 

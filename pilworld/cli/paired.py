@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.cli.bench import DEFAULT_RIG
+from pilworld.cli.checks import ROUNDS, SAMPLING_STEPS, SEED, STARTS, SUBTASKS, bounded, check_count
 from pilworld.collection.tasks import APPEARANCES
 
 
@@ -33,15 +34,19 @@ def register(sub: Any) -> None:
         help="policy checkpoints, comma-separated: scripted names or openpi servers ws://host:port "
         "(default: the rig's best checkpoint)",
     )
-    r.add_argument("--subtasks", type=int, required=True, help="subtasks per task and checkpoint")
+    r.add_argument("--subtasks", type=int, required=True, help=bounded("subtasks per task and checkpoint", SUBTASKS))
     r.add_argument("--out", type=Path, required=True, help="run folder (created, or resumed)")
-    r.add_argument("--seed", type=int, default=0, help="layout seed of the first subtasks (default 0)")
+    r.add_argument("--seed", type=int, default=0, help=bounded("layout seed of the first subtasks (default 0)", SEED))
     r.add_argument("--world-model", default="", help="world-model folder (default: the packaged checkpoint)")
     r.add_argument(
         "--adapter", default="auto", help="LoRA adapter: auto (the task's, if packaged), none, or a name (default auto)"
     )
-    r.add_argument("--steps", type=int, default=None, help="sampling steps (default: the model's)")
-    r.add_argument("--rounds", type=int, default=5, help="closed-loop rounds per subtask, R (default 5)")
+    r.add_argument(
+        "--steps", type=int, default=None, help=bounded("sampling steps (default: the model's)", SAMPLING_STEPS)
+    )
+    r.add_argument(
+        "--rounds", type=int, default=5, help=bounded("closed-loop rounds per subtask, R (default 5)", ROUNDS)
+    )
     r.add_argument("--video-mode", default="lossless", choices=["lossless", "h264", "av1"])
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     r.add_argument(
@@ -68,10 +73,15 @@ def register(sub: Any) -> None:
     s.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     s.add_argument("--task", required=True, help=TASK_HELP)
     task_options(s)
-    s.add_argument("--count", type=int, required=True, help="starts per task")
+    s.add_argument("--count", type=int, required=True, help=bounded("starts per task", STARTS))
     s.add_argument("--out", type=Path, required=True, help="starts folder (created, or resumed)")
-    s.add_argument("--seed", type=int, default=0, help="layout seed of the first starts (default 0)")
-    s.add_argument("--rounds", type=int, default=5, help="closed-loop rounds the starts are meant for (default 5)")
+    s.add_argument("--seed", type=int, default=0, help=bounded("layout seed of the first starts (default 0)", SEED))
+    s.add_argument(
+        "--rounds",
+        type=int,
+        default=5,
+        help=bounded("closed-loop rounds the starts are meant for (default 5)", ROUNDS),
+    )
     s.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     s.add_argument(
         "--unattended",
@@ -131,8 +141,9 @@ def _record_starts(args: argparse.Namespace) -> int:
     from pilworld.paired.record_starts import record_starts
     from pilworld.types import ChunkSpec
 
-    if args.count < 1:
-        raise ValueError(f"--count: expected at least 1, got {args.count}")
+    check_count(args.count, "--count", STARTS)
+    check_count(args.seed, "--seed", SEED)
+    check_count(args.rounds, "--rounds", ROUNDS)
     check_tasks(args)
     summary = record_starts(
         str(args.rig),
@@ -157,9 +168,14 @@ def _run(args: argparse.Namespace) -> int:
     from pilworld.policies.registry import default_checkpoint
     from pilworld.types import ChunkSpec
 
-    ckpts = [c.strip() for c in args.checkpoints.split(",")] if args.checkpoints else [default_checkpoint()]
-    if args.rounds < 1:
-        raise ValueError(f"--rounds: expected at least 1, got {args.rounds}")
+    given = args.checkpoints is not None
+    ckpts = [c.strip() for c in args.checkpoints.split(",")] if given else [default_checkpoint()]
+    check_count(args.subtasks, "--subtasks", SUBTASKS)
+    check_count(args.seed, "--seed", SEED)
+    check_count(args.rounds, "--rounds", ROUNDS)
+    check_count(args.steps, "--steps", SAMPLING_STEPS)
+    if not ckpts or not all(ckpts):
+        raise ValueError(f"--checkpoints: expected checkpoint names separated by commas, got {args.checkpoints!r}")
     check_tasks(args)
     cfg = PairedConfig(
         rig=str(args.rig),

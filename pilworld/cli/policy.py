@@ -8,6 +8,7 @@ scripted checkpoint of the simulated rig standing in for a VLA server. Loopback 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
 from pathlib import Path
@@ -43,8 +44,10 @@ def _serve(args: argparse.Namespace) -> int:
     names = [c.name for c in CHECKPOINTS]
     if args.checkpoint not in names:
         raise ValueError(f"--checkpoint: unknown {args.checkpoint!r}; expected one of {', '.join(names)}")
-    if args.horizon < 1:
-        raise ValueError(f"--horizon: expected a positive int, got {args.horizon}")
+    if not 1 <= args.horizon <= 10_000:
+        raise ValueError(f"--horizon: expected an integer in 1..10,000 (actions per chunk), got {args.horizon}")
+    if not 0 <= args.port <= 65535:
+        raise ValueError(f"--port: expected 0..65535, got {args.port}")
     if args.max_seconds is not None and not args.max_seconds > 0:
         raise ValueError(f"--max-seconds: expected a positive number, got {args.max_seconds}")
     rig = RigConfig.load(args.rig)
@@ -58,7 +61,12 @@ def _serve(args: argparse.Namespace) -> int:
         image_size=size,
         allow_remote=args.allow_remote,
     )
-    with server:
+    try:
+        server.__enter__()
+    except OSError as err:  # the port is taken (or the address is not this machine's)
+        raise ValueError(f"--port: cannot listen on {args.host}:{args.port} ({err.strerror or err})") from None
+    with contextlib.ExitStack() as stack:
+        stack.push(server.__exit__)
         limit = "" if args.max_seconds is None else f" for {args.max_seconds:g} s"
         print(
             f"policy serve: {policy.name} on {server.url} (GET /healthz), images {size[0]}×{size[1]} CHW, "

@@ -40,10 +40,14 @@ def register(sub: Any) -> None:
 
 
 def _report(args: argparse.Namespace) -> int:
+    from pilworld.io.run_folder import check_out_file
     from pilworld.report import build_report, report_stats
 
     if args.max_pairs is not None and args.max_pairs < 0:
         raise ValueError(f"--max-pairs: expected an integer >= 0, got {args.max_pairs}")
+    if not (args.run_dir / "meta" / "info.json").is_file():
+        raise ValueError(f"RUN_DIR: {args.run_dir}: not a run folder (no meta/info.json)")
+    check_out_file(args.out or args.run_dir / "report.html", "--out", suffixes=(".html",))  # before the work
     if args.imagined:
         from pilworld.metrics import write_metrics
         from pilworld.ppi.outcomes import attach_runs, read_run_outcomes

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.cli.bench import DEFAULT_RIG, _names
+from pilworld.cli.checks import EPISODES, SCALE, SEED, SUBTASK_INDEX, WORKERS, bounded, check_count
 from pilworld.collection.tasks import APPEARANCES
 
 
@@ -32,11 +33,11 @@ def register(sub: Any) -> None:
     )
     c.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
     c.add_argument("--checkpoint", default="all", help="scripted checkpoint(s), comma-separated, or 'all'")
-    c.add_argument("--episodes", type=int, required=True, help="runs per task and checkpoint")
+    c.add_argument("--episodes", type=int, required=True, help=bounded("runs per task and checkpoint", EPISODES))
     c.add_argument("--out", type=Path, required=True, help="dataset folder (created or resumed)")
     c.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
-    c.add_argument("--seed", type=int, default=0, help="layout seed of the first run (default 0)")
-    c.add_argument("--workers", type=int, default=None, help="processes (default: CPUs)")
+    c.add_argument("--seed", type=int, default=0, help=bounded("layout seed of the first run (default 0)", SEED))
+    c.add_argument("--workers", type=int, default=None, help=bounded("processes (default: CPUs)", WORKERS))
     c.add_argument("--video-mode", default="h264", choices=["h264", "lossless", "av1"])
     c.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     c.set_defaults(handler=_collect)
@@ -56,8 +57,9 @@ def _collect(args: argparse.Namespace) -> int:
     from pilworld.collection.tasks import check_instruction, require_simulated, resolve_tasks
     from pilworld.policies.scripted import CHECKPOINTS
 
-    if args.episodes < 1:
-        raise ValueError(f"--episodes: expected at least 1, got {args.episodes}")
+    check_count(args.episodes, "--episodes", EPISODES)
+    check_count(args.workers, "--workers", WORKERS)
+    check_count(args.seed, "--seed", SEED)
     tasks = resolve_tasks(args.task, what="--task")
     require_simulated(tasks, what="--task")
     instruction = check_instruction(args.instruction, "--instruction")
@@ -91,11 +93,14 @@ def _show(args: argparse.Namespace) -> int:
     import numpy as np
 
     from pilworld.collection.tasks import require_simulated, resolve_tasks
+    from pilworld.io.run_folder import check_out_file
     from pilworld.io.video import write_png
     from simrig.robot import SimRobot
 
-    if args.scale < 1:
-        raise ValueError(f"--scale: expected an integer >= 1, got {args.scale}")
+    check_count(args.scale, "--scale", SCALE)
+    check_count(args.seed, "--seed", SEED)
+    check_count(args.subtask, "--subtask", SUBTASK_INDEX)
+    check_out_file(args.out, "--out", suffixes=(".png",))
     (task,) = resolve_tasks([args.task], what="--task")
     require_simulated([task], what="--task")
     with SimRobot(args.rig, task) as robot:

@@ -64,10 +64,10 @@ def register(sub: Any) -> None:
     )
     t.add_argument("file", metavar="FILE", help="task file (.yaml) or packaged task name")
     t.add_argument("--checkpoints", default="all", help="scripted checkpoints, comma-separated, or all (default)")
-    t.add_argument("--subtasks", type=int, default=12, help="subtask starts per checkpoint (default 12)")
+    t.add_argument("--subtasks", type=int, default=12, help="subtask starts per checkpoint (default 12) [1..1,000]")
     t.add_argument("--seed", type=int, default=0, help="layout seed of the first start (default 0)")
     t.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
-    t.add_argument("--workers", type=int, default=None, help="processes (default: CPUs)")
+    t.add_argument("--workers", type=int, default=None, help="processes (default: CPUs) [1..256]")
     t.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
     t.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     t.set_defaults(handler=_try)
@@ -143,10 +143,14 @@ def _simulated_task(name: str) -> Any:
 def _show(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from pilworld.cli.checks import SEED, check_count
+    from pilworld.io.run_folder import check_out_file
     from pilworld.io.video import write_png
     from simrig.robot import SimRobot
 
     check_png_out(args.out)
+    check_out_file(args.out, "--out", suffixes=(".png",))  # a name OpenCV can take, a folder it can write
+    check_count(args.seed, "--seed", SEED)
     task = _simulated_task(args.file)
     rows = []
     with SimRobot(args.rig, task, appearance=args.appearance) as robot:
@@ -180,14 +184,14 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _try(args: argparse.Namespace) -> int:
+    from pilworld.cli.checks import SEED, TRY_SUBTASKS, WORKERS, check_count
     from pilworld.collection.evaluate import success_rates
     from pilworld.policies.scripted import CHECKPOINTS
     from pilworld.types import ChunkSpec
 
-    if args.subtasks < 1:
-        raise ValueError(f"--subtasks: expected at least 1, got {args.subtasks}")
-    if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers: expected at least 1, got {args.workers}")
+    check_count(args.subtasks, "--subtasks", TRY_SUBTASKS)
+    check_count(args.workers, "--workers", WORKERS)
+    check_count(args.seed, "--seed", SEED)
     ckpts = _names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
     task = _simulated_task(args.file)
     t0 = time.monotonic()

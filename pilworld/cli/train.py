@@ -131,12 +131,19 @@ def _composite(args: argparse.Namespace) -> int:
         "checkpoint_every",
         "validate_every",
     ):
-        if getattr(args, name) < 1:
-            raise ValueError(f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}")
+        if not 1 <= getattr(args, name) <= 10_000_000:
+            raise ValueError(
+                f"--{name.replace('_', '-')}: expected an integer in 1..10,000,000, got {getattr(args, name)}"
+            )
+    from pilworld.data.reader import EpisodeStore
+    from pilworld.io.run_folder import TRAINING, check_out_folder
+
+    check_out_folder(args.out, TRAINING)  # a folder another command made is refused before anything
     if not (args.data / "meta" / "info.json").is_file():
         raise ValueError(
             f"--data: {args.data} is not a dataset (no meta/info.json); record one with pilworld sim collect"
         )
+    _ = EpisodeStore(args.data).episodes  # a damaged --data fails before --out is created
     settings = TrainSettings(
         data=str(args.data),
         rig=str(args.rig),
@@ -219,10 +226,21 @@ def _relaunch(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from pilworld.io.run_folder import TRAINING, check_out_folder
     from pilworld.world_model.training.trainer import TrainConfig, Trainer
 
+    for name in ("steps", "batch", "window", "checkpoint_every", "validate_every", "val_clips"):
+        value = getattr(args, name, None)
+        if value is not None and not 1 <= value <= 10_000_000:
+            raise ValueError(f"--{name.replace('_', '-')}: expected an integer in 1..10,000,000, got {value}")
+    if not 1 <= args.nproc <= 64:
+        raise ValueError(f"--nproc: expected an integer in 1..64 (processes on this machine), got {args.nproc}")
     if args.nproc != 1 and "WORLD_SIZE" not in os.environ:
-        return _relaunch(args)
+        return _relaunch(args)  # (each rank checks --out and --data below)
+    check_out_folder(args.out, TRAINING)  # a folder another command made is refused before anything
+    from pilworld.data.reader import EpisodeStore
+
+    _ = EpisodeStore(args.data).episodes  # a missing or damaged --data fails before --out is created
     finetune = args.stage == "finetune"
     cfg = TrainConfig(
         stage=args.stage,

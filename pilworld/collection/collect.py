@@ -199,7 +199,14 @@ def collect(
         )
     if not instruction.strip() and instruction:
         raise ValueError("instruction: must not be blank")
+    from dataclasses import asdict
+
+    from pilworld.data.writer import check_store_spec
+    from pilworld.io.run_folder import COLLECTION, check_out_folder, claim
+
+    check_out_folder(root, COLLECTION, legacy=True)  # a folder another command made is refused
     store_spec = dataset_spec(rig_path, video_mode, spec)
+    check_store_spec(root, store_spec)
     done = stored_parts(root)
     jobs = plan_jobs(loaded, checkpoints, episodes, seed0, instruction=instruction, appearance=appearance)
     parts_of = {t.name: t.num_subtasks for t in loaded}
@@ -207,6 +214,7 @@ def collect(
     workers = worker_count(workers, len(todo))
     t0 = time.monotonic()
     written = 0
+    claim(root, COLLECTION, {"rig": str(Path(rig_path).resolve()), "video_mode": video_mode, "spec": asdict(spec)})
     with EpisodeWriter(root, store_spec) as writer:
         bar = tqdm(total=len(todo), desc="runs", unit="run", disable=not progress)
         for parts in process_map(_worker, [(rig_path, j, spec) for j in todo], workers):

@@ -127,8 +127,14 @@ def read_outcomes(root: str | Path) -> list[Outcome]:
     path = Path(root) / layout.OUTCOMES
     if not path.is_file():
         return []
-    rows = pq.read_table(path).to_pylist()
-    return [Outcome(**row) for row in sorted(rows, key=lambda r: (r["episode_index"], r["judge_id"]))]
+    from pilworld.data.reader import DamagedDatasetError
+
+    try:
+        rows = pq.read_table(path).to_pylist()
+        return [Outcome(**row) for row in sorted(rows, key=lambda r: (r["episode_index"], r["judge_id"]))]
+    except (OSError, pa.ArrowException, TypeError, KeyError, ValueError) as err:  # cut short or overwritten
+        detail = " ".join(str(err).split()[:12])
+        raise DamagedDatasetError(f"{path}: outcomes table unreadable ({detail})") from None
 
 
 @contextmanager

@@ -28,15 +28,56 @@ class DatasetError(ValueError):
     """A dataset folder is missing, not v3.0, or inconsistent; the message names the file."""
 
 
+class DamagedDatasetError(DatasetError):
+    """A dataset file that is there but damaged (unparseable, of the wrong shape, cut short)."""
+
+
+_INFO_NUMBERS = ("fps", "total_episodes", "total_frames", "total_tasks", "chunks_size")
+_INFO_TEXTS = ("codebase_version", "data_path", "video_path", "robot_type")
+
+
+def check_info_shape(info: object, path: Path) -> dict[str, Any]:
+    """``info.json`` as a dict of the fields readers use, of the types they expect; one line otherwise."""
+    if not isinstance(info, dict):
+        raise DamagedDatasetError(f"{path}: damaged: expected a JSON object, found {type(info).__name__}")
+    for key in ("fps", "features"):
+        if key not in info:
+            raise DamagedDatasetError(f"{path}: damaged: no {key!r}")
+    for key in _INFO_NUMBERS:
+        value = info.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise DamagedDatasetError(f"{path}: damaged: {key!r} is {value!r}, expected a number")
+    if "fps" in info and not info["fps"] > 0:
+        raise DamagedDatasetError(f"{path}: damaged: 'fps' is {info['fps']!r}, expected a positive number")
+    for key in _INFO_TEXTS:
+        value = info.get(key)
+        if value is not None and not isinstance(value, str):
+            raise DamagedDatasetError(f"{path}: damaged: {key!r} is {value!r}, expected text")
+    feats = info.get("features", {})
+    if not isinstance(feats, dict):
+        raise DamagedDatasetError(f"{path}: damaged: 'features' is {feats!r}, expected an object")
+    for key, ft in feats.items():
+        if not isinstance(ft, dict):
+            raise DamagedDatasetError(f"{path}: damaged: feature {key!r} is {ft!r}, expected an object")
+        shape = ft.get("shape")
+        if shape is not None and (
+            not isinstance(shape, list) or not all(isinstance(n, int) and not isinstance(n, bool) for n in shape)
+        ):
+            raise DamagedDatasetError(f"{path}: damaged: feature {key!r} has shape {shape!r}, expected integers")
+        if "info" in ft and not isinstance(ft["info"], dict | None):
+            raise DamagedDatasetError(f"{path}: damaged: feature {key!r} has info {ft['info']!r}")
+    return info
+
+
 def read_info(root: Path) -> dict[str, Any]:
     path = root / layout.INFO
     if not path.is_file():
         raise DatasetError(f"{root}: not a LeRobot dataset (no {layout.INFO})")
     try:
-        info: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+        info = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise DatasetError(f"{path}: not valid JSON: {err}") from None
-    return info
+        raise DamagedDatasetError(f"{path}: not valid JSON: {err}") from None
+    return check_info_shape(info, path)
 
 
 def list_column(table: pa.Table, key: str, width: int) -> NDArray[np.float32]:
@@ -104,8 +145,17 @@ class EpisodeStore:
         try:
             own = json.loads(pj.read_text(encoding="utf-8")) if pj.is_file() else None
         except (json.JSONDecodeError, UnicodeDecodeError) as err:
-            raise DatasetError(f"{pj}: not valid JSON: {err}") from None
-        self.spec = spec_from_info(self.info, own, source=str(pj))
+            raise DamagedDatasetError(f"{pj}: not valid JSON: {err}") from None
+        try:
+            self.spec = spec_from_info(
+                self.info, own, source=str(pj) if own is not None else str(self.root / layout.INFO)
+            )
+        except DatasetError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
+            where = str(pj) if own is not None else str(self.root / layout.INFO)
+            detail = " ".join(str(err).split())
+            raise DamagedDatasetError(detail if detail.startswith(where) else f"{where}: damaged: {detail}") from None
         self.video_keys = [k for k, ft in self.info["features"].items() if ft.get("dtype") == "video"]
         # The dataset's own path templates (LeRobot's defaults match ours; other writers may differ).
         self.data_path = str(self.info.get("data_path") or layout.DATA_PATH)
@@ -125,7 +175,7 @@ class EpisodeStore:
             try:
                 tables.append(pq.read_table(f))
             except (OSError, pa.ArrowException) as err:  # a truncated or overwritten file
-                raise DatasetError(f"{f}: episodes table unreadable ({str(err).splitlines()[0]})") from None
+                raise DamagedDatasetError(f"{f}: episodes table unreadable ({str(err).splitlines()[0]})") from None
         table = pa.concat_tables(tables, promote_options="permissive")
         rows = sorted(table.to_pylist(), key=lambda r: int(r["episode_index"]))
         for i, row in enumerate(rows):
@@ -138,7 +188,10 @@ class EpisodeStore:
         path = self.root / layout.TASKS
         if not path.is_file():
             return {}
-        table = pq.read_table(path)
+        try:
+            table = pq.read_table(path)
+        except (OSError, pa.ArrowException) as err:  # a truncated or overwritten file
+            raise DamagedDatasetError(f"{path}: tasks table unreadable ({str(err).splitlines()[0]})") from None
         if "task" in table.column_names:
             names = table.column("task").to_pylist()
         else:  # pandas index column, as LeRobot writes it

@@ -136,6 +136,8 @@ class DatasetSpec:
 
     @classmethod
     def from_json(cls, data: dict[str, Any], *, source: str) -> DatasetSpec:
+        if not isinstance(data, dict):
+            raise ValueError(f"{source}: expected a JSON object, found {type(data).__name__}")
         if data.get("format") != PILWORLD_FORMAT:
             raise ValueError(f"{source}: field 'format': expected {PILWORLD_FORMAT!r}, got {data.get('format')!r}")
         try:
@@ -150,3 +152,21 @@ class DatasetSpec:
             )
         except KeyError as err:
             raise ValueError(f"{source}: missing field {err.args[0]!r}") from None
+        except (TypeError, AttributeError, IndexError) as err:
+            raise ValueError(f"{source}: a field has the wrong shape ({err})") from None
+
+
+def spec_difference(old: DatasetSpec, new: DatasetSpec) -> str:
+    """What differs between two specs, as ``field: X there, Y now; …`` (never the whole repr)."""
+    a, b = old.to_json(), new.to_json()
+    diff = [
+        f"{k}: {_short(a.get(k))} there, {_short(b.get(k))} now"
+        for k in sorted(set(a) | set(b))
+        if a.get(k) != b.get(k)
+    ]
+    return "; ".join(diff) or "the same fields, in another form"
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

@@ -35,7 +35,7 @@ from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.manifest import MANIFEST_COLUMN, META_MANIFEST, manifest_json, meta_manifest_text
 from pilworld.data.reader import DatasetError, EpisodeStore
-from pilworld.data.spec import ACTION_KEY, CODEBASE_VERSION, STATE_KEY, DatasetSpec
+from pilworld.data.spec import ACTION_KEY, CODEBASE_VERSION, STATE_KEY, DatasetSpec, spec_difference
 from pilworld.data.stats import aggregate, image_stats, to_jsonable, vector_stats
 from pilworld.data.video_codec import encode_video
 
@@ -89,12 +89,25 @@ def tasks_table(names: list[str]) -> pa.Table:
 _META_FILES = (layout.TASKS, layout.INFO, layout.STATS, layout.PILWORLD)  # covered by meta/manifest.json
 
 
+def check_store_spec(root: Path, spec: DatasetSpec | None) -> None:
+    """Refuse a dataset at ``root`` whose spec is not ``spec``, naming what differs; reads only."""
+    if spec is None or not (root / layout.INFO).is_file():
+        return
+    have = EpisodeStore(root).spec
+    if have != spec:
+        raise DatasetError(
+            f"{root}: exists with a different spec ({spec_difference(have, spec)}); "
+            "resume with the same settings, or choose a new folder"
+        )
+
+
 class EpisodeWriter:
     """Create or reopen a dataset and append :class:`Episode` objects to it."""
 
     def __init__(self, root: str | Path, spec: DatasetSpec | None = None, *, durable: bool = True) -> None:
         self.root = Path(root)
         self.durable = durable
+        check_store_spec(self.root, spec)  # a dataset of another spec is refused before a byte is written
         (self.root / "meta").mkdir(parents=True, exist_ok=True)
         self._lock_fh = (self.root / layout.LOCK).open("a")
         try:
@@ -113,7 +126,10 @@ class EpisodeWriter:
         if (self.root / layout.INFO).is_file():
             store = EpisodeStore(self.root)
             if spec is not None and spec != store.spec:
-                raise DatasetError(f"{self.root}: exists with a different spec ({store.spec}); got {spec}")
+                raise DatasetError(
+                    f"{self.root}: exists with a different spec ({spec_difference(store.spec, spec)}); "
+                    "resume with the same settings, or choose a new folder"
+                )
             self.spec = store.spec
             self._rows = list(store.episodes)
             self._tasks = {name: idx for idx, name in store.tasks.items()}

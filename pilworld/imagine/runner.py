@@ -214,7 +214,9 @@ def _check_config(root: Path, cfg: ImagineConfig, *, write: bool) -> None:
     path = root / CONFIG_FILE
     want = json.loads(json.dumps(cfg.to_json()))
     if path.is_file():
-        have = {**want, **json.loads(path.read_text())}
+        from pilworld.io.run_folder import read_json_object
+
+        have = {**want, **read_json_object(path)}
         diff = settings_diff(have, want, set(have) | set(want))
         if diff:
             raise ValueError(
@@ -379,9 +381,11 @@ def imagine_run(
     """Run (or resume) an imagined-only run; returns a summary. ``backend`` overrides ``workers``."""
     from pilworld.collection.collect import dataset_spec
     from pilworld.config.rig import RigConfig
+    from pilworld.io.run_folder import IMAGINED, check_out_folder
     from pilworld.paired.runner import load_model
 
     root = Path(cfg.out)
+    check_out_folder(root, IMAGINED)  # a folder another command made is refused before anything else
     restore_run(root)  # a damaged table or setting of a stored run comes back from its backup first
     history = cfg.spec.history if cfg.spec is not None else ChunkSpec().history
     source = load_starts(cfg.starts, history=history, start_frame=cfg.start_frame)

@@ -42,6 +42,9 @@ def write_mp4(
     _check_frames(frames)
     if not fps > 0:
         raise ValueError(f"fps: expected a positive frame rate, got {fps!r}")
+    from pilworld.io.run_folder import check_path_text
+
+    check_path_text(path, "out")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     n, h, w, _ = frames.shape
@@ -87,6 +90,9 @@ def write_png(image: NDArray[np.uint8], path: str | Path) -> Path:
     """Write one RGB image (H, W, 3) losslessly."""
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[-1] != 3:
         raise ValueError(f"image: expected uint8 (H, W, 3), got {image.dtype} {image.shape}")
+    from pilworld.io.run_folder import check_path_text
+
+    check_path_text(path, "out")  # OpenCV crashes (SIGSEGV) on a path that is not UTF-8
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):

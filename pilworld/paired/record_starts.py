@@ -39,7 +39,9 @@ def record_starts(
     each task's own in the recorded starts. Everything is checked before the folder is created."""
     from pilworld.collection.collect import dataset_spec
     from pilworld.config.rig import RigConfig
+    from pilworld.io.run_folder import STARTS, check_out_folder
 
+    check_out_folder(out, STARTS)  # a folder another command made is refused before anything else
     spec = spec or ChunkSpec()
     # The paired run's own validation of rig, tasks, instruction and count (no checkpoint runs here).
     cfg = PairedConfig(

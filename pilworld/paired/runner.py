@@ -232,7 +232,9 @@ def same_rig(a: Any, b: Any) -> bool:
 def stored_config(path: Path) -> dict[str, Any]:
     """A run's stored ``paired_config.json``; a key an older run's file lacks had its present default then
     (new settings default to the old behaviour)."""
-    return {**_config_defaults(), **json.loads(path.read_text())}
+    from pilworld.io.run_folder import read_json_object
+
+    return {**_config_defaults(), **read_json_object(path)}
 
 
 def settings_diff(have: dict[str, Any], want: dict[str, Any], keys: Iterable[str]) -> list[str]:
@@ -400,8 +402,10 @@ def paired_run(
     """
     from pilworld.collection.collect import dataset_spec
     from pilworld.collection.tasks import task_extra
+    from pilworld.io.run_folder import PAIRED, check_out_folder
 
     root = Path(cfg.out)
+    check_out_folder(root, PAIRED)  # a folder another command made is refused before anything else
     rig = RigConfig.load(cfg.rig)
     tasks = cfg.task_files  # loads and validates every task file
     check_station_tasks(rig, tasks, operator)

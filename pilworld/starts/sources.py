@@ -66,6 +66,13 @@ def _resolve(path: Path) -> tuple[Path, str]:
 def load_starts(path: str | Path, *, history: int, start_frame: int | None = None) -> StartsSource:
     """Every start in ``path``; raises :class:`StartsError` naming what is missing."""
     root, kind = _resolve(Path(path))
+    if start_frame is not None and kind != "dataset":
+        raise StartsError(
+            f"--start-frame: {path} holds recorded starts (a {'paired run' if kind == 'paired' else 'starts folder'}), "
+            "each with its own start frame; --start-frame is for a plain episode store"
+        )
+    if start_frame is not None and start_frame < 0:
+        raise StartsError(f"--start-frame: expected a frame index >= 0, got {start_frame}")
     store = EpisodeStore(root)
     fps = float(store.fps)
     starts: list[StoredStart] = []

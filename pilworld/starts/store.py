@@ -184,7 +184,9 @@ class StartsWriter:
         }
         path = self.root / META_FILE
         if path.is_file():
-            have = json.loads(path.read_text())
+            from pilworld.io.run_folder import read_json_object
+
+            have = read_json_object(path)
             diff = sorted(k for k in ("robot_spec", "chunk") if have.get(k) != self.meta[k])
             if diff:
                 raise StartsError(f"{self.root}: holds starts recorded with other settings ({', '.join(diff)})")
@@ -265,4 +267,6 @@ class StartsWriter:
 
 def read_meta(root: Path) -> dict[str, Any] | None:
     path = root / META_FILE
-    return json.loads(path.read_text()) if path.is_file() else None
+    from pilworld.io.run_folder import read_json_object
+
+    return read_json_object(path) if path.is_file() else None

@@ -8,7 +8,6 @@ task, under ``adapters/<name>/`` (``adapter_config.json`` and ``adapter.safetens
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -43,11 +42,22 @@ def save_folder(
     return out
 
 
+def read_tensors(path: Path) -> dict[str, torch.Tensor]:
+    """The tensors of a safetensors file; a truncated, empty or foreign file is one line naming it."""
+    try:
+        return load_file(str(path))
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: missing weights file") from None
+    except Exception as err:  # safetensors raises its own SafetensorError (and OSError, RuntimeError)
+        detail = " ".join(str(err).split()) or type(err).__name__
+        raise ValueError(f"{path}: damaged weights, not a readable safetensors file ({detail})") from None
+
+
 def load_weights(model: nn.Module, weights: Path) -> None:
     """Load a folder's weights (as float32) into ``model``; ``ValueError`` when they do not fit its config."""
     if not weights.is_file():
         raise FileNotFoundError(f"{weights}: missing world-model weights")
-    state = {k: v.float() if v.is_floating_point() else v for k, v in load_file(str(weights)).items()}
+    state = {k: v.float() if v.is_floating_point() else v for k, v in read_tensors(weights).items()}
     missing, unexpected = model.load_state_dict(state, strict=False)
     if missing or unexpected:
         raise ValueError(
@@ -64,10 +74,15 @@ def read_config(folder: str | Path) -> WorldModelConfig:
     path = Path(folder) / CONFIG_FILE
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no world-model config (expected {CONFIG_FILE} beside {WEIGHTS_FILE})")
-    data = json.loads(path.read_text())
+    from pilworld.io.run_folder import read_json_object
+
+    data = read_json_object(path, "world model")
     if data.get("format") != FORMAT:
         raise ValueError(f"{path}: format {data.get('format')!r} is not {FORMAT!r}")
-    return WorldModelConfig.from_dict(data["config"])
+    try:
+        return WorldModelConfig.from_dict(data["config"])
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise ValueError(f"{path}: not a valid world-model config ({type(err).__name__}: {err})") from None
 
 
 def load_model(folder: str | Path, *, device: str | torch.device = "cpu") -> PilWorldModel:

@@ -23,7 +23,7 @@ from pilworld.data.convert.lerobot_v21 import LeRobotV21Source
 from pilworld.data.convert.lerobot_v30 import LeRobotV30Source
 from pilworld.data.convert.mapping import ConvertMapping
 from pilworld.data.reader import EpisodeStore, read_info
-from pilworld.data.spec import CODEBASE_VERSION, DatasetSpec
+from pilworld.data.spec import CODEBASE_VERSION, DatasetSpec, spec_difference
 from pilworld.data.video_codec import codec_settings
 from pilworld.data.writer import EpisodeWriter
 
@@ -72,40 +72,82 @@ def open_source(source: Path, fmt: str, mapping: ConvertMapping) -> EpisodeSourc
     return SOURCES[fmt](source, mapping)
 
 
-def _spec_difference(old: DatasetSpec, new: DatasetSpec) -> str:
-    a, b = old.to_json(), new.to_json()
-    return "; ".join(f"{k}: {a[k]!r} there, {b[k]!r} now" for k in a if a[k] != b.get(k))
-
-
-def _already_converted(out: Path, spec: DatasetSpec, src: EpisodeSource) -> int:
-    """How many episodes of ``src`` a previous run committed to ``out`` (0 for a new output)."""
-    if not out.exists():
-        return 0
-    if not out.is_dir():
-        raise ValueError(f"{out}: exists and is not a folder")
-    if not (out / layout.INFO).is_file():
-        # A writer killed while creating the dataset may leave meta/ only; anything else is not ours.
-        if any(p.name != "meta" for p in out.iterdir()):
-            raise ValueError(f"{out}: exists and is not a dataset; choose a new output folder")
-        return 0
-    store = EpisodeStore(out)
-    if store.spec != spec:
-        raise ValueError(
-            f"{out}: exists with a different spec ({_spec_difference(store.spec, spec)}); "
-            "resume with the same mapping and --video-mode, or choose a new output folder"
-        )
+def _check_resumed(out: Path, store: EpisodeStore, src: EpisodeSource, first: int, done: int) -> None:
+    """Episodes ``first`` … ``first + done - 1`` of ``out`` must be the first ``done`` of ``src``."""
     lengths = src.lengths()
-    if store.num_episodes > len(lengths):
-        raise ValueError(f"{out}: holds {store.num_episodes} episodes but {src.path} has {len(lengths)}")
-    for j, row in enumerate(store.episodes):
+    if done > len(lengths):
+        raise ValueError(f"{out}: holds {done} episodes of {src.path}, which has {len(lengths)}")
+    rows = store.episodes
+    for j in range(done):
+        row = rows[first + j]
         came_from = (json.loads(row["extra"]) if row.get("extra") else {}).get("converted_from")
         expected = src.provenance(j)["converted_from"]
         if int(row["length"]) != lengths[j] or came_from != expected:
             raise ValueError(
-                f"{out}: episode {j} ({row['length']} frames, converted from {came_from}) is not {expected} of "
-                f"{src.path} ({lengths[j]} frames); not a partial conversion of this source, choose a new output folder"
+                f"{out}: episode {first + j} ({row['length']} frames, converted from {came_from}) is not {expected} "
+                f"of {src.path} ({lengths[j]} frames); not a partial conversion of this source, choose a new OUT"
             )
-    return store.num_episodes
+
+
+def _resume_point(
+    out: Path, spec: DatasetSpec, src: EpisodeSource, *, append: bool
+) -> tuple[int, int, list[dict[str, Any]]]:
+    """Where ``src`` goes in ``out``: (its first episode there, how many of its episodes are there already,
+    the sources of ``out`` with it). Resuming keys on the source (its resolved path, in ``conversion.json``),
+    never on an episode index alone: another source is refused, or with ``append`` added after the others."""
+    from pilworld.io.run_folder import CONVERTED, EPISODE_STORE, check_out_folder, read_marker
+
+    held = check_out_folder(out, CONVERTED, "OUT", legacy=True)
+    me = str(Path(src.path).resolve())
+    total = len(src.lengths())
+    entry = {"path": me, "format": src.format_name, "first_episode": 0, "episodes": total}
+    if held is None:
+        return 0, 0, [entry]
+    store = EpisodeStore(out)
+    if store.spec != spec:
+        raise ValueError(
+            f"{out}: exists with a different spec ({spec_difference(store.spec, spec)}); "
+            "resume with the same mapping and --video-mode, or choose a new output folder"
+        )
+    n = store.num_episodes
+    if held == EPISODE_STORE:  # converted before conversion.json: its source was not recorded
+        if append:
+            entry["first_episode"] = n
+            return n, 0, [{"path": "", "format": "", "first_episode": 0, "episodes": n}, entry]
+        _check_resumed(out, store, src, 0, n)
+        return 0, n, [entry]
+    marker = read_marker(out, CONVERTED) or {}
+    sources = [dict(x) for x in marker.get("sources", []) if isinstance(x, dict)]
+    for k, source in enumerate(sources):
+        if source.get("path") != me:
+            continue
+        first = int(source.get("first_episode", 0))
+        end = int(sources[k + 1]["first_episode"]) if k + 1 < len(sources) else n
+        done = end - first
+        _check_resumed(out, store, src, first, done)
+        if append:
+            raise ValueError(
+                f"--append: {src.path} is already source {k + 1} of {out} (episodes {first}..{first + done - 1}); "
+                + ("rerun without --append to resume it" if done < total else "nothing to append")
+            )
+        if done < total and k + 1 < len(sources):
+            raise ValueError(f"{out}: {src.path} was cut short before another source was appended; choose a new OUT")
+        return first, done, sources
+    last = sources[-1] if sources else {}
+    if not append:
+        raise ValueError(
+            f"{out}: holds a conversion of {last.get('path') or 'another source'} ({n} episodes); {src.path} is "
+            "another source: pass --append to add its episodes after them, or choose a new OUT"
+        )
+    if last:
+        owned = n - int(last.get("first_episode", 0))
+        if owned < int(last.get("episodes", owned)):
+            raise ValueError(
+                f"--append: the conversion of {last.get('path')} into {out} is unfinished "
+                f"({owned} of {last.get('episodes')} episodes); finish it first (rerun it without --append)"
+            )
+    entry["first_episode"] = n
+    return n, 0, [*sources, entry]
 
 
 def convert(
@@ -115,6 +157,7 @@ def convert(
     video_mode: str = "h264",
     fmt: str = "auto",
     progress: bool = True,
+    append: bool = False,
 ) -> dict[str, Any]:
     """Convert ``source`` into a PiL-World dataset at ``out``; returns a JSON-able summary.
 
@@ -133,11 +176,15 @@ def convert(
         spec = src.spec(video_mode)
     except ValueError as err:
         raise ValueError(f"{source}: {err}") from None
+    from pilworld.io.run_folder import CONVERTED, claim
+
     lengths = src.lengths()
-    done = _already_converted(out, spec, src)
+    first, done, sources = _resume_point(out, spec, src, append=append)
+    if done < len(lengths):  # nothing is written for a source already converted in full
+        claim(out, CONVERTED, {"video_mode": video_mode, "sources": sources})
 
     started = time.monotonic()
-    frames = 0
+    frames = converted = 0
     with EpisodeWriter(out, spec) as writer:
         bar = tqdm(total=len(lengths), initial=done, unit="ep", desc=f"convert {source.name}", disable=not progress)
         try:
@@ -147,6 +194,7 @@ def convert(
                 except ValueError as err:  # the episode does not fit the spec (sizes, lengths, names)
                     raise ValueError(f"{source}: episode {index}: {err}") from err
                 frames += episode.length
+                converted += 1
                 bar.update(1)
         finally:
             bar.close()
@@ -158,7 +206,8 @@ def convert(
         "episodes": total_episodes,
         "frames": total_frames,
         "skipped": done,
-        "converted": total_episodes - done,
+        "converted": converted,
+        "first_episode": first,
         "converted_frames": frames,
         "fps": spec.fps,
         "views": {view: list(size) for view, size in spec.views.items()},

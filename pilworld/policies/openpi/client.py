@@ -56,11 +56,11 @@ class ChunkTiming:
 def websocket_url(host_or_url: str, port: int | None = None) -> str:
     """``ws://host:port`` from a host and port, or a ``ws://``/``wss://`` URL (port appended like openpi)."""
     if not isinstance(host_or_url, str) or not host_or_url:
-        raise ValueError(f"url: expected a host name or a ws:// URL, got {host_or_url!r}")
+        raise ValueError(f"--checkpoints: expected a host name or a ws:// URL, got {host_or_url!r}")
     if host_or_url.startswith(("ws://", "wss://")):
         url = host_or_url
     elif "://" in host_or_url:
-        raise ValueError(f"url: expected a ws:// or wss:// URL, got {host_or_url!r}")
+        raise ValueError(f"--checkpoints: expected a ws:// or wss:// URL, got {host_or_url!r}")
     else:
         url = f"ws://{host_or_url}"
     if port is not None:
@@ -72,7 +72,7 @@ def websocket_url(host_or_url: str, port: int | None = None) -> str:
     try:
         urlsplit(url).port  # noqa: B018 - raises on a malformed port
     except ValueError as err:
-        raise ValueError(f"url: {url}: {err}") from None
+        raise ValueError(f"--checkpoints: {url}: {err}") from None
     return url
 
 
@@ -182,7 +182,7 @@ class OpenPiClient:
         except TimeoutError:
             raise PolicyTimeoutError(self._name, "connect", self.connect_timeout, self.url) from None
         except websockets.InvalidURI as err:
-            raise ValueError(f"url: {err}") from None
+            raise ValueError(f"--checkpoints: {err}") from None
         except websockets.InvalidHandshake as err:  # something answered, but refused the websocket upgrade
             raise PolicyConnectionError(self._name, self.url, f"failed: {err}", kind="handshake failed") from None
         except OSError as err:  # nothing listening, no route, no such host

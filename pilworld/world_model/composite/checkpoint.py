@@ -22,16 +22,25 @@ def is_composite(folder: str | Path) -> bool:
     if not path.is_file():
         return False
     try:
-        return bool(json.loads(path.read_text()).get("format") == FORMAT)
-    except json.JSONDecodeError:
+        data = json.loads(path.read_text())
+        return isinstance(data, dict) and data.get("format") == FORMAT
+    except (json.JSONDecodeError, UnicodeDecodeError):
         return False
 
 
 def load_composite(folder: str | Path) -> CompositeWorldModel:
     root = Path(folder)
-    data = json.loads((root / CONFIG_FILE).read_text())
+    from pilworld.io.run_folder import read_json_object
+
+    data = read_json_object(root / CONFIG_FILE, "world model")
     if data.get("format") != FORMAT:
         raise ValueError(f"{root / CONFIG_FILE}: format {data.get('format')!r} is not {FORMAT!r}")
-    model = CompositeWorldModel(CompositeConfig.from_dict(data["config"]))
+    try:
+        config = CompositeConfig.from_dict(data["config"])
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise ValueError(
+            f"{root / CONFIG_FILE}: not a valid world-model config ({type(err).__name__}: {err})"
+        ) from None
+    model = CompositeWorldModel(config)
     load_weights(model, root / WEIGHTS_FILE)
     return model.eval()

@@ -28,7 +28,7 @@ def test_status_and_export(run: Path, capsys: pytest.CaptureFixture[str]) -> Non
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["serve", "{run}", "--judges", "0"], "--judges: expected an integer >= 1, got 0"),
+        (["serve", "{run}", "--judges", "0"], "--judges: expected an integer in 1..100"),
         (["serve", "{run}", "--judges", "2", "--host", "0.0.0.0"], "--allow-remote"),
         (["serve", "{run}"], "--judges: "),
         (["serve", "{empty}", "--judges", "1"], "not a LeRobot dataset"),

@@ -43,7 +43,22 @@ def test_one_line_and_exit_status(
     assert len(lines) == 1 and lines[0].startswith("pilworld: error: "), lines
 
 
-def test_debug_shows_the_traceback(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(cli, "build_parser", lambda: _parser_raising(ProtectiveStopError("left arm", "stop")))
-    with pytest.raises(ProtectiveStopError):
-        cli.main(["--debug"])
+@pytest.mark.parametrize(
+    ("err", "status"), [(ProtectiveStopError("left arm", "stop"), 1), (ValueError("--subtasks: expected 1..9"), 2)]
+)
+def test_debug_shows_the_traceback(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], err: BaseException, status: int
+) -> None:
+    """``--debug`` adds the traceback; the exit status is the documented one still (not Python's 1)."""
+    monkeypatch.setattr(cli, "build_parser", lambda: _parser_raising(err))
+    assert cli.main(["--debug"]) == status
+    stderr = capsys.readouterr().err
+    assert "Traceback (most recent call last)" in stderr and type(err).__name__ in stderr
+    assert stderr.splitlines()[-1].startswith("pilworld: error: ")
+
+
+def test_os_errors_name_the_file_first(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.delenv("PILWORLD_DEBUG", raising=False)
+    monkeypatch.setattr(cli, "build_parser", lambda: _parser_raising(FileExistsError(17, "File exists", "/x/out")))
+    assert cli.main([]) == 2
+    assert capsys.readouterr().err == "pilworld: error: /x/out: File exists\n"

@@ -126,11 +126,13 @@ def test_the_servers_metadata_is_stored_per_checkpoint(server: FaultyServer, one
     assert stored[server.url]["pilworld"] == {"policy": CKPT, "reset": True}
 
 
-def test_debug_shows_the_traceback(server: FaultyServer, tmp_path: Path) -> None:
+def test_debug_shows_the_traceback(server: FaultyServer, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--debug`` prints the traceback before the one line; the exit status stays 1 (a run failure)."""
     server.stop()
     try:
-        with pytest.raises(Exception, match="unreachable"):
-            main(["--debug", *_run(tmp_path / "run", server.url, 1)])
+        assert main(["--debug", *_run(tmp_path / "run", server.url, 1)]) == 1
+        err = capsys.readouterr().err
+        assert "Traceback (most recent call last)" in err and "unreachable" in err.splitlines()[-1]
     finally:
         server.start()
 

@@ -73,7 +73,7 @@ def test_user_errors_exit_2(dataset: Path, tmp_path: Path, capsys: pytest.Captur
     assert "not a LeRobot dataset (no meta/info.json)" in capsys.readouterr().err
     argv = ["train", "finetune", "--data", str(dataset), "--out", str(tmp_path / "c"), "--init", str(tmp_path / "x")]
     assert main([*argv, "--task", "taskA", "--steps", "0"]) == 2
-    assert "steps: expected an integer >= 1, got 0" in capsys.readouterr().err
+    assert "--steps: expected an integer in 1..10,000,000, got 0" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:  # argparse: a missing required option
         main(["train", "finetune", "--data", str(dataset), "--out", str(tmp_path / "d")])
     assert exc.value.code == 2

@@ -93,22 +93,43 @@ def test_resume_refuses_other_spec_or_source(tmp_path: Path, aloha: Path) -> Non
     with pytest.raises(ValueError, match=r"views: .* there, .* now.*resume with the same mapping"):
         convert(aloha, tmp_path / "out", TASK.with_overrides(resize=(8, 8)), "lossless", progress=False)
     other = tmp_path / "other"
-    for n in range(2):  # same layout, other lengths: not the source `out` was converted from
+    for n in range(2):  # same layout, other lengths: another source, refused (it would be mixed in)
         write_aloha(other / f"episode_{n}.hdf5", T=9, seed=n, cams=("cam_high", "cam_low"))
-    with pytest.raises(ValueError, match=r"out: holds 4 episodes but .*other has 2"):
-        convert(other, tmp_path / "out", TASK, "lossless", progress=False)
-    write_aloha(other / "episode_2.hdf5", T=9, seed=2, cams=("cam_high", "cam_low"))
-    write_aloha(other / "episode_3.hdf5", T=9, seed=3, cams=("cam_high", "cam_low"))
+    before = sorted((p.relative_to(tmp_path), p.stat().st_size) for p in (tmp_path / "out").rglob("*"))
     with pytest.raises(
-        ValueError, match=r"out: episode 0 \(3 frames, .*\) is not .* of .*other \(9 frames\); not a partial"
+        ValueError, match=r"out: holds a conversion of .*src \(4 episodes\); .*other is another source: pass --append"
     ):
         convert(other, tmp_path / "out", TASK, "lossless", progress=False)
+    assert sorted((p.relative_to(tmp_path), p.stat().st_size) for p in (tmp_path / "out").rglob("*")) == before
+
+
+def test_append_adds_another_source_after_the_first(tmp_path: Path, aloha: Path) -> None:
+    """A second source goes in only with --append, after the first's episodes; each source resumes by itself."""
+    import json
+
+    out = tmp_path / "out"
+    first = convert(aloha, out, TASK, "lossless", progress=False)
+    other = tmp_path / "other"
+    for n in range(2):
+        write_aloha(other / f"episode_{n}.hdf5", T=9, seed=n, cams=("cam_high", "cam_low"))
+    second = convert(other, out, TASK, "lossless", progress=False, append=True)
+    assert (second["skipped"], second["converted"], second["episodes"]) == (0, 2, first["episodes"] + 2)
+    sources = json.loads((out / "conversion.json").read_text())["settings"]["sources"]
+    assert [(s["first_episode"], s["episodes"]) for s in sources] == [(0, first["episodes"]), (first["episodes"], 2)]
+    again = convert(other, out, TASK, "lossless", progress=False)  # a rerun of either source: nothing to do
+    assert (again["skipped"], again["converted"]) == (2, 0)
+    assert convert(aloha, out, TASK, "lossless", progress=False)["converted"] == 0
+    with pytest.raises(
+        ValueError, match=r"--append: .*other is already source 2 of .*out \(episodes 4..5\); rerun without --append"
+    ):
+        write_aloha(other / "episode_2.hdf5", T=9, seed=2, cams=("cam_high", "cam_low"))
+        convert(other, out, TASK, "lossless", progress=False, append=True)
 
 
 def test_output_checks(tmp_path: Path, aloha: Path) -> None:
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "notes.txt").write_text("mine")
-    with pytest.raises(ValueError, match=r"busy: exists and is not a dataset; choose a new output folder"):
+    with pytest.raises(ValueError, match=r"OUT: .*busy holds files of no pilworld run.*choose a new or empty OUT"):
         convert(aloha, tmp_path / "busy", TASK, progress=False)
     with pytest.raises(ValueError, match=r"the output must not be the source or inside it"):
         convert(aloha, aloha / "converted", TASK, progress=False)
