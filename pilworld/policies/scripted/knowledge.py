@@ -116,7 +116,7 @@ class TaskKnowledge:
         self.task = task
         self.instruction = task.instruction
         self.classes = [ColourClass(n, task.colour(n)) for n in task.object_names]
-        heights = task.done_heights()
+        heights = self.heights = task.done_heights()  # each object's underside once its subtask is done
         moved = {task.subtask_object(k): k for k in range(task.num_subtasks)}
         self.members: list[Member] = []
         for k in range(task.num_subtasks):
@@ -131,6 +131,10 @@ class TaskKnowledge:
 
     def geometry(self, obj: str) -> Geometry:
         return self.task.geometry[obj]
+
+    def target_top(self, m: Member) -> float:
+        """Height of the top of the object ``m`` goes onto or into, once that one is done [m]."""
+        return self.heights[m.target] + self.geometry(m.target).height
 
     def member(self, obj: str) -> Member | None:
         return next((m for m in self.members if m.obj == obj), None)

@@ -247,8 +247,7 @@ class ScriptedPolicy:
         if inside and member is not None and not self._fingers_fit(side, know, member.target):
             # Into a container narrower than the open fingers: let go with the fingertips above its rim.
             # Opened inside it, the fingers would push its wall and drag the object out again.
-            rim = know.task.done_heights()[member.target] + know.geometry(member.target).height
-            release_z = max(release_z, rim + FINGERTIP_BELOW_TCP + 0.008)
+            release_z = max(release_z, know.target_top(member) + FINGERTIP_BELOW_TCP + 0.008)
         if grasp.kind == "rim" and member is not None:
             base_xy = getattr(self.rig.kinematics, side).T_rig_base[:2, 3]
             (gx, gy, gz), yaw, off = know.rim_grasp(intent.obj, np.array([gx, gy]), base_xy)
@@ -257,8 +256,7 @@ class ScriptedPolicy:
             if member.kind != "region":
                 # Open with the fingertips above the rim below: opened inside it, the outer finger would
                 # wedge against its wall and lift the whole stack on the way up.
-                below_top = know.task.done_heights()[member.target] + know.geometry(member.target).height
-                release_z = max(release_z, below_top + FINGERTIP_BELOW_TCP + 0.008)
+                release_z = max(release_z, know.target_top(member) + FINGERTIP_BELOW_TCP + 0.008)
             if carrying:
                 # Keep the yaw we hold it with; the container's centre lies along the closing axis.
                 yaw = yaw_now
