@@ -12,7 +12,6 @@ file needs no image to be textured.
 from __future__ import annotations
 
 import functools
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -131,7 +130,3 @@ def texture_assets(
         material = f'<material name="{mat}" texture="{tex}" texrepeat="{repeat:.6g} {repeat:.6g}" texuniform="true"/>'
     xml = (f'<texture name="{tex}" type="{kind}" file="{fname}"/>', material)
     return Assets(xml, ((fname, png_bytes(image)),)), mat, mean
-
-
-def is_file_texture(texture: Texture) -> bool:
-    return texture.image is not None and Path(texture.image).is_file()
