@@ -175,22 +175,26 @@ def camera_effects(image: NDArray[np.uint8], look: Look, *, frame: int, camera: 
         raise ValueError(f"image: expected uint8 (H, W, 3), got {img.dtype} {img.shape}")
     rng = frame_rng(look, frame, camera)
     gains = np.asarray(look.white_balance, dtype=np.float32) * np.float32(look.exposure)
-    x = img.astype(np.float32) * gains
+    x = np.multiply(img, gains, dtype=np.float32)
     if look.blur > 0:
         x = cv2.GaussianBlur(x, (0, 0), look.blur, borderType=cv2.BORDER_REFLECT)
     sigma = np.sqrt(np.float32(look.read_noise) ** 2 + np.float32(look.shot_noise) * x)
     # Unit normal noise from random bytes through a 256-entry quantile table: ~10× faster than
-    # standard_normal at this size, and as deterministic.
+    # standard_normal at this size, and as deterministic. In-place arithmetic and cv2's channel swaps
+    # (rather than numpy's reversed views) give the same bytes for ~25 % less time per frame.
     z = _NORMAL_QUANTILES[np.frombuffer(rng.bytes(x.size), dtype=np.uint8).reshape(x.shape)]
-    x += z * sigma
-    out = np.clip(x + np.float32(0.5), 0.0, 255.0).astype(np.uint8)
-    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(out[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, look.jpeg_quality])
+    z *= sigma
+    x += z
+    x += np.float32(0.5)
+    np.clip(x, 0.0, 255.0, out=x)
+    bgr = cv2.cvtColor(x.astype(np.uint8), cv2.COLOR_RGB2BGR)
+    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, look.jpeg_quality])
     if not ok:
         raise ValueError("camera_effects: JPEG encoding failed")
     decoded = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     if decoded is None:
         raise ValueError("camera_effects: JPEG decoding failed")
-    return np.ascontiguousarray(decoded[:, :, ::-1], dtype=np.uint8)
+    return np.asarray(cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB), dtype=np.uint8)
 
 
 def apply_look(model: Any, look: Look) -> None:

@@ -111,6 +111,9 @@ def kind_of(path: str | Path) -> str | None:
     for marker, kind in MARKERS.items():
         if (root / marker).is_file():
             return kind
+    for marker, kind in MARKERS.items():  # a deleted marker still has its backup; the resume restores it
+        if (root / "meta" / "backup" / marker).is_file():
+            return kind
     if (root / "meta" / "info.json").is_file():
         return EPISODE_STORE
     try:
