@@ -1,5 +1,8 @@
 """``pilworld bench sim``: physics and rendering speed of the simulated rig, and checkpoint success rates.
 
+With ``--baseline LOOK`` the speed figures of a second appearance are measured alternately in the same
+process and the ratios reported (``baseline_ratio``), the comparison that survives machine drift.
+
 * ``physics_steps_per_s``: MuJoCo steps per wall second (arms tracking a command, objects resting);
 * ``render_ms_per_view``: one 128×128 view rendered headless (mean over all cameras);
 * ``realtime_factor``: simulated time / wall time for one subtask with the best checkpoint in closed
@@ -21,34 +24,22 @@ if TYPE_CHECKING:
     from simrig.tasks import Task
 
 
-def run_sim_bench(
-    rig_path: str,
-    *,
-    task: str | Task = "sort_cubes",
-    subtasks: int = 0,
-    tasks: list[str | Task] | None = None,
-    checkpoints: list[str] | None = None,
-    workers: int | None = None,
-    progress: bool = True,
-    appearance: str = "flat",
-) -> dict[str, Any]:
-    """``task`` (a packaged name, a task file or a task) for the speed figures; ``tasks`` (default: the paper's
-    three) for the success rates."""
+SPEED_KEYS = ("physics_steps_per_s", "render_ms_per_view", "realtime_factor", "subtask_wall_s")
+REPEATS_MAX = 50
+
+
+def measure_speed(rig_path: str, task: Task, appearance: str) -> dict[str, Any]:
+    """One measurement of the speed figures of ``task``'s scene under ``appearance``."""
     from pilworld.collection.rollout import run_subtask
-    from pilworld.collection.tasks import require_simulated, resolve_tasks
-    from pilworld.policies.scripted import BEST_CHECKPOINT, CHECKPOINTS, ScriptedPolicy
+    from pilworld.policies.scripted import BEST_CHECKPOINT, ScriptedPolicy
     from simrig.gl import mujoco
     from simrig.robot import SimRobot
-    from simrig.tasks import PAPER_TASKS
 
     spec = ChunkSpec()
-    (speed_task,) = resolve_tasks([task])
-    rate_tasks = resolve_tasks(list(tasks or PAPER_TASKS)) if subtasks > 0 else []
-    require_simulated([speed_task, *rate_tasks])
-    robot = SimRobot(rig_path, speed_task, appearance=appearance)
+    robot = SimRobot(rig_path, task, appearance=appearance)
     robot.connect()
     try:
-        start = robot.reset(seed=0, subtask=0, history=0)
+        robot.reset(seed=0, subtask=0, history=0)
         model, data = robot._model, robot._data  # the bench times raw physics, below the Robot contract
         n = 5000
         t0 = time.perf_counter()
@@ -65,18 +56,14 @@ def run_sim_bench(
                 robot.render(v)
         render_ms = (time.perf_counter() - t0) / (reps * len(views)) * 1000
         start = robot.reset(seed=1, subtask=0, history=0)
-        policy = ScriptedPolicy(robot.rig, BEST_CHECKPOINT, seed=1, task=speed_task)
+        policy = ScriptedPolicy(robot.rig, BEST_CHECKPOINT, seed=1, task=task)
         sim0, t0 = robot.time, time.perf_counter()
         run_subtask(robot, policy.infer, start.observation, robot.task.instruction, spec=spec, record=True)
         wall = time.perf_counter() - t0
         realtime = (robot.time - sim0) / wall
     finally:
         robot.disconnect()
-    result: dict[str, Any] = {
-        "rig": Path(rig_path).name,
-        "task": speed_task.name,
-        "task_sha256": speed_task.digest,
-        "appearance": appearance,
+    return {
         "physics_steps_per_s": round(physics, 1),
         "physics_timestep_s": float(model.opt.timestep),
         "render_ms_per_view": round(render_ms, 3),
@@ -84,6 +71,72 @@ def run_sim_bench(
         "realtime_factor": round(realtime, 2),
         "subtask_wall_s": round(wall, 3),
     }
+
+
+def _medians(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    out = dict(runs[0])
+    for key in SPEED_KEYS:
+        out[key] = round(float(np.median([r[key] for r in runs])), 3)
+    return out
+
+
+def run_sim_bench(
+    rig_path: str,
+    *,
+    task: str | Task = "sort_cubes",
+    subtasks: int = 0,
+    tasks: list[str | Task] | None = None,
+    checkpoints: list[str] | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+    appearance: str = "flat",
+    repeats: int = 1,
+    baseline: str | None = None,
+) -> dict[str, Any]:
+    """``task`` (a packaged name, a task file or a task) for the speed figures; ``tasks`` (default: the paper's
+    three) for the success rates.
+
+    The speed figures are the median of ``repeats`` measurements. With ``baseline`` (another appearance) the
+    same figures are measured for it too, alternating with ``appearance`` in this one process, and their
+    ratios reported: absolute speed differs between machines and drifts within a run, a ratio measured
+    side by side does not (``baseline_ratio``: this look's figure over the baseline's).
+    """
+    from pilworld.collection.tasks import require_simulated, resolve_tasks
+    from pilworld.policies.scripted import CHECKPOINTS
+    from simrig.appearance import check_appearance
+    from simrig.tasks import PAPER_TASKS
+
+    check_appearance(appearance)
+    if baseline is not None:
+        check_appearance(baseline)
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= REPEATS_MAX:
+        raise ValueError(f"repeats: expected an integer in [1, {REPEATS_MAX}], got {repeats!r}")
+    spec = ChunkSpec()
+    (speed_task,) = resolve_tasks([task])
+    rate_tasks = resolve_tasks(list(tasks or PAPER_TASKS)) if subtasks > 0 else []
+    require_simulated([speed_task, *rate_tasks])
+    runs: list[dict[str, Any]] = []
+    base_runs: list[dict[str, Any]] = []
+    for _ in range(repeats):
+        if baseline is not None:
+            base_runs.append(measure_speed(rig_path, speed_task, baseline))
+        runs.append(measure_speed(rig_path, speed_task, appearance))
+    result: dict[str, Any] = {
+        "rig": Path(rig_path).name,
+        "task": speed_task.name,
+        "task_sha256": speed_task.digest,
+        "appearance": appearance,
+        **_medians(runs),
+        "repeats": repeats,
+    }
+    if baseline is not None:
+        base = _medians(base_runs)
+        result["baseline"] = {"appearance": baseline, **{k: base[k] for k in SPEED_KEYS}}
+        # Per repeat (the two measured back to back), then the median: drift between repeats cancels.
+        result["baseline_ratio"] = {
+            k: round(float(np.median([r[k] / b[k] for r, b in zip(runs, base_runs, strict=True)])), 3)
+            for k in ("render_ms_per_view", "realtime_factor")
+        }
     if subtasks > 0:
         from pilworld.collection.evaluate import success_rates
 

@@ -12,6 +12,7 @@ from typing import Any
 
 from pilworld.bench.reprojection import add_arguments as reprojection_arguments
 from pilworld.cli.bench_print import Column, emit, num, pct, table
+from pilworld.cli.checks import SIM_REPEATS, bounded
 from pilworld.cli.control_video import parse_size
 from pilworld.collection.tasks import APPEARANCES
 from pilworld.control_video.robot_render import BACKENDS
@@ -148,6 +149,18 @@ def register(sub: Any) -> None:
         help="tasks for the success rates: names or task files, comma-separated, or all (the paper's three; default)",
     )
     sm.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
+    sm.add_argument(
+        "--baseline",
+        default=None,
+        choices=APPEARANCES,
+        help="also time this appearance, alternating with --appearance, and report their ratios (default: none)",
+    )
+    sm.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help=bounded("speed measurements per appearance; medians reported (default 1)", SIM_REPEATS),
+    )
     sm.add_argument("--checkpoints", default="all", help="comma-separated scripted checkpoints (default all)")
     sm.add_argument(
         "--workers", type=int, default=None, help="processes for the success rates (default: CPUs) [1..256]"
@@ -478,12 +491,13 @@ def _names(value: str, all_names: list[str], what: str) -> list[str]:
 
 def _sim(args: argparse.Namespace) -> int:
     from pilworld.bench.sim import run_sim_bench
-    from pilworld.cli.checks import TRY_SUBTASKS, WORKERS, check_count
+    from pilworld.cli.checks import SIM_REPEATS, TRY_SUBTASKS, WORKERS, check_count
     from pilworld.collection.tasks import require_simulated, resolve_tasks
     from pilworld.policies.scripted import CHECKPOINTS
 
     check_count(args.subtasks, "--subtasks", TRY_SUBTASKS)
     check_count(args.workers, "--workers", WORKERS)
+    check_count(args.repeats, "--repeats", SIM_REPEATS)
     (task,) = resolve_tasks([args.task], what="--task")
     tasks = resolve_tasks(args.tasks, what="--tasks")
     require_simulated([task], what="--task")
@@ -498,11 +512,21 @@ def _sim(args: argparse.Namespace) -> int:
         checkpoints=ckpts,
         workers=args.workers,
         progress=not args.json,
+        repeats=args.repeats,
+        baseline=args.baseline,
     )
     print(
-        f"sim: {result['physics_steps_per_s']:.0f} physics steps/s, {result['render_ms_per_view']:.1f} ms per view, "
-        f"realtime factor {result['realtime_factor']:.1f}"
+        f"sim ({args.appearance}): {result['physics_steps_per_s']:.0f} physics steps/s, "
+        f"{result['render_ms_per_view']:.1f} ms per view, realtime factor {result['realtime_factor']:.1f}"
     )
+    if "baseline" in result:
+        b, r = result["baseline"], result["baseline_ratio"]
+        print(
+            f"  {b['appearance']}: {b['render_ms_per_view']:.1f} ms per view, realtime factor "
+            f"{b['realtime_factor']:.1f}; {args.appearance} / {b['appearance']}: "
+            f"render ×{r['render_ms_per_view']:.2f}, "
+            f"realtime ×{r['realtime_factor']:.2f} (median of {args.repeats}, measured side by side)"
+        )
     for task, rates in result.get("success_rates", {}).items():
         print(f"  {task}: " + ", ".join(f"{c} {r:.2f}" for c, r in rates.items()))
     return emit(args, result)

@@ -32,6 +32,7 @@ SEED = Bound(0, 2**32 - 1, "a layout seed")
 SUBTASK_INDEX = Bound(0, 1_000_000, "a subtask of the layout")
 SCALE = Bound(1, 16, "integer upscaling")
 TRY_SUBTASKS = Bound(1, 1_000, "subtask starts per checkpoint")
+SIM_REPEATS = Bound(1, 50, "speed measurements per appearance, each a closed-loop subtask")
 
 
 def check_count(value: int | None, flag: str, bound: Bound) -> None:

@@ -240,6 +240,23 @@ def test_bench_sim_prints_speed_figures_as_json(capsys: pytest.CaptureFixture[st
     assert "success_rates" not in result
 
 
+def test_bench_sim_times_a_baseline_look_side_by_side(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "sim", "--task", TASK, "--appearance", "varied", "--baseline", "flat", "--json"]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    result = json.loads(out[-1])
+    assert result["appearance"] == "varied" and result["repeats"] == 1
+    assert result["baseline"]["appearance"] == "flat"
+    for key in ("render_ms_per_view", "realtime_factor"):
+        ratio = result[key] / result["baseline"][key]
+        assert result["baseline_ratio"][key] == pytest.approx(ratio, rel=0.01), key
+    assert any("varied / flat" in line for line in out)
+
+
+def test_bench_sim_refuses_a_repeat_count_out_of_bounds(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "sim", "--repeats", "0"]) == 2
+    assert "--repeats: expected an integer in 1..50" in capsys.readouterr().err
+
+
 def test_bench_sim_success_rates_shape(capsys: pytest.CaptureFixture[str]) -> None:
     args = ["bench", "sim", "--task", TASK, "--subtasks", "1", "--tasks", TASK]
     assert main([*args, "--checkpoints", BEST_CHECKPOINT, "--workers", "1", "--json"]) == 0
