@@ -32,6 +32,7 @@ from pilworld.geometry import is_rigid_transform
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, LEFT_ARM, RIGHT_ARM, STATE_DIM, Observation, RobotSpec, Start, Subtask
 from simrig.appearance import DEFAULT_APPEARANCE, Look, apply_look, camera_effects, check_appearance, draw_look
 from simrig.board_mount import BoardMount
+from simrig.files import SIM_RIG
 from simrig.gl import make_renderer, mujoco
 from simrig.hand_board import PARKED, HandBoard
 from simrig.poses import HOME_Q14
@@ -39,7 +40,6 @@ from simrig.scene import FINGER_SQUEEZE, appearance_assets, build_mjcf, compile_
 from simrig.table_board import TableBoard
 from simrig.tasks import Layout, ObjectPose, Task, make_task
 
-DEFAULT_RIG = Path(__file__).resolve().parents[1] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 SETTLE_S = 0.5  # physics time given to a new layout before the lead-in
 
 
@@ -64,7 +64,7 @@ class SimRobot:
 
     def __init__(
         self,
-        rig: RigConfig | str | Path = DEFAULT_RIG,
+        rig: RigConfig | str | Path = SIM_RIG,
         task: str | Path | Task = "sort_cubes",
         *,
         board_mount: BoardMount | None = None,

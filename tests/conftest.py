@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from pathlib import Path
 
 import pytest
 
-SIM_RIG = Path(__file__).resolve().parents[1] / "configs" / "rig" / "sim_dual_ur5e.yaml"
+from simrig.files import SIM_RIG  # the one definition; the tests import it from here too
 
 
 @pytest.fixture(scope="session")

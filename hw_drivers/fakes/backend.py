@@ -212,11 +212,11 @@ class SimBackend:
         start_timeout: float = 60.0,
         appearance: str = "flat",
     ) -> None:
-        from simrig.robot import DEFAULT_RIG
+        from simrig.files import SIM_RIG
 
         if camera_fps <= 0:
             raise ValueError(f"camera_fps: expected > 0, got {camera_fps}")
-        self._rig_arg = DEFAULT_RIG if rig is None else rig
+        self._rig_arg = SIM_RIG if rig is None else rig
         self._task = task
         self._seed, self._subtask = seed, subtask
         self._appearance = appearance  # the simulated rig's look (simrig.appearance): "flat" or "varied"

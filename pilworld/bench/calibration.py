@@ -64,6 +64,7 @@ from calib.sweep import (
 )
 from calib.synthetic import perturb_detection, synthetic_views
 from pilworld.bench.common import machine_info
+from simrig.files import SIM_RIG
 
 __all__ = [
     "A3_BOARD",
@@ -79,7 +80,6 @@ __all__ = [
 
 ROOT = Path(__file__).resolve().parents[2]
 A3_BOARD: Final = ROOT / "configs" / "board" / "charuco_12x9_a3.yaml"
-DEFAULT_RIG: Final = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
 DEFAULT_OUT: Final = Path("bench_out") / "calibration"
 
 #: The "unknown" lens of the intrinsics acceptance (tests/calib/scenes.py): 640x480, radial + tangential.
@@ -264,7 +264,7 @@ def wrist_figures(
     seeds: int = 10,
     poses: int = 20,
     resolution: int = 1024,
-    rig_path: Path = DEFAULT_RIG,
+    rig_path: Path = SIM_RIG,
     cameras: Sequence[str] = WRIST_CAMERAS,
     progress: bool = True,
 ) -> dict[str, Any]:
@@ -446,7 +446,7 @@ def run_calibration_bench(
     out_dir: Path = DEFAULT_OUT,
     handeye_source: str | None = None,
     handeye_poses: int = 20,
-    rig_path: Path = DEFAULT_RIG,
+    rig_path: Path = SIM_RIG,
     seed: int = 0,
     progress: bool = True,
     wrist_seeds: int = 10,

@@ -162,8 +162,9 @@ def pool_populations(pool: str | Path) -> list[Population]:
 def make_pool(out: Path, *, subtasks: int, progress: bool) -> Path:
     """The pool as a judged paired run on the simulated rig (every task × checkpoint; resumable)."""
     from pilworld.demo import run_demo
+    from simrig.files import SIM_RIG
 
-    rig = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
+    rig = SIM_RIG
     run_demo(out, rig=rig, full=True, subtasks=subtasks, seed=POOL_SEED0, progress=progress)
     return out
 

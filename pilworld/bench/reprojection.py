@@ -39,8 +39,8 @@ from pilworld.control_video.cameras import RigCameras
 from pilworld.control_video.lag import estimate_lag, lagged_poses
 from pilworld.control_video.reprojection import SOURCE_HEAD, SOURCE_OWN, ReprojectionPrior, SceneReprojector
 from pilworld.types import HEAD_VIEW, ChunkSpec, Subtask
+from simrig.files import SIM_RIG
 
-DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 DEFAULT_TASKS = ("sort_cubes", "stack_blocks", "stack_bowls")
 REPORT_FRAMES = (1, 5, 10, 15)  # 1-based k reported in the summary
 ACCEPT_GAIN_DB = 3.0  # at the last frame the prior must beat the frozen frame by this much (wrists pooled)
@@ -407,7 +407,7 @@ def _sized(rig: RigConfig, size: int) -> RigConfig:
 
 
 def run_reprojection_bench(
-    rig_path: str | Path = DEFAULT_RIG,
+    rig_path: str | Path = SIM_RIG,
     *,
     quick: bool = False,
     tasks: tuple[str, ...] = DEFAULT_TASKS,
@@ -518,7 +518,7 @@ def _camera_motion(cameras: RigCameras, clip: Clip, view: str) -> float:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The bench's options, for ``python -m pilworld.bench.reprojection`` and ``pilworld bench reprojection``."""
-    parser.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    parser.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     parser.add_argument("--quick", action="store_true", help="one task, one run, one subtask, 64x64 (seconds)")
     parser.add_argument("--episodes", type=int, default=None, help="runs per task (default 3; quick 1)")
     parser.add_argument("--subtasks", type=int, default=None, help="subtasks per run (default 3; quick 1)")

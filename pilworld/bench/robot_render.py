@@ -50,9 +50,10 @@ from pilworld.control_video.robot_model import (
 )
 from pilworld.control_video.robot_render import BACKENDS, Backend, make_robot_renderer
 from pilworld.types import ARM_LAYOUT, ARM_SIDES, STATE_DIM
+from simrig.files import SIM_RIG
 from simrig.gl import make_renderer, mujoco
 from simrig.poses import HOME_Q14
-from simrig.robot import DEFAULT_RIG, SimRobot
+from simrig.robot import SimRobot
 
 __all__ = [
     "CHUNK",
@@ -257,7 +258,7 @@ def _diagnostic_png(
 
 
 def run_robot_render_accuracy(
-    rig_path: str | Path = DEFAULT_RIG,
+    rig_path: str | Path = SIM_RIG,
     configs_per_arm: int = 200,
     seed: int = 0,
     backend: Backend = "analytic",
@@ -367,7 +368,7 @@ def run_robot_render_accuracy(
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m pilworld.bench.robot_render", description=__doc__.split("\n")[0])
-    ap.add_argument("--rig", default=str(DEFAULT_RIG))
+    ap.add_argument("--rig", default=str(SIM_RIG))
     ap.add_argument("--configs-per-arm", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--backend", choices=BACKENDS, default="analytic")

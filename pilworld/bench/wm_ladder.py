@@ -56,9 +56,9 @@ from pilworld.paired.runner import PairedSubtask, plan_subtasks
 from pilworld.rollout import Rollout
 from pilworld.types import LEFT_GRIP, RIGHT_GRIP, ActionChunk, ChunkSpec, Observation, Segment, Start, Subtask
 from pilworld.world_model.base import PredictRequest, WorldModel, WorldModelBatch, WorldModelInfo
+from simrig.files import SIM_RIG
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_RIG = REPO_ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"
 DEFAULT_OUT = Path("bench_runs") / "wm_ladder"
 LADDER_SEED0 = 8_000_000
 TASKS = ("sort_cubes", "stack_bowls", "stack_blocks")
@@ -86,7 +86,7 @@ class LadderConfig:
     """What one ladder run measures; every field has the bench's default."""
 
     model: str = ""  # a world-model folder; "" = pilworld.world_model.DEFAULT_CHECKPOINT
-    rig: str = str(DEFAULT_RIG)
+    rig: str = str(SIM_RIG)
     quick: bool = False
     subtasks: int | None = None  # per task × checkpoint; None = SUBTASKS[quick | full]
     tasks: tuple[str, ...] = TASKS

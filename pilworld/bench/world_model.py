@@ -51,8 +51,8 @@ from pilworld.data.reader import EpisodeStore
 from pilworld.world_model.base import FrozenWorldModel, PredictRequest, WorldModel, WorldModelBatch, WorldModelInfo
 from pilworld.world_model.batching import collate_clips, control_renderer, resize_images
 from pilworld.world_model.metrics import SingleStepScores, load_lpips
+from simrig.files import SIM_RIG
 
-DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
 CONTROL_STRIDE = 3  # Δ in control steps (paper)
 TRAINING_SEEDS = range(0, 20)  # seeds of the world-model training set (docs/sim_rig.md)
 HELDOUT_SEED0 = 1_000_000
@@ -269,7 +269,7 @@ def run_world_model_bench(
     batch: int = 1,
     repeats: int = 20,
     seed: int = 0,
-    rig: str | Path = DEFAULT_RIG,
+    rig: str | Path = SIM_RIG,
     progress: bool = True,
     cache_dir: str | Path | None = None,
     lpips_weights: Path | None = None,

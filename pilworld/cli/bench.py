@@ -18,8 +18,7 @@ from pilworld.collection.tasks import APPEARANCES
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
 from pilworld.types import ChunkSpec
-
-DEFAULT_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml"
+from simrig.files import SIM_RIG
 
 
 def _signed(digits: int) -> Any:
@@ -93,7 +92,7 @@ def register(sub: Any) -> None:
         default=None,
         help="Γ⁺: world-model folder timed in the same run (default: v1, sim_small); 'none' skips it",
     )
-    cv.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    cv.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     cv.add_argument("--chunks", type=int, default=4000, help="random chunks per timed pass (default 4000)")
     cv.add_argument("--batch", type=int, default=64, help="chunks per render_batch call (default 64)")
     cv.add_argument("--size", default=None, help="WIDTHxHEIGHT (default: 128x128 for markers, the rig's for Γ⁺)")
@@ -107,7 +106,7 @@ def register(sub: Any) -> None:
     rr = benches.add_parser(
         "robot-render", help="Γ⁺ robot render vs MuJoCo's segmentation of the full simulated scene: IoU per view"
     )
-    rr.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    rr.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     rr.add_argument("--configs-per-arm", type=int, default=200, help="random configurations per arm (default 200)")
     rr.add_argument("--backend", choices=BACKENDS, default="analytic", help="renderer under test (default analytic)")
     rr.add_argument("--task", default="sort_cubes", help="task whose scene is the ground truth (default sort_cubes)")
@@ -133,7 +132,7 @@ def register(sub: Any) -> None:
     sm = benches.add_parser(
         "sim", help="simulated rig: physics steps/s, render ms/view, realtime factor, success rates"
     )
-    sm.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    sm.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     sm.add_argument(
         "--task", default="sort_cubes", help="task (name or task file) for the speed figures (default sort_cubes)"
     )
@@ -183,7 +182,7 @@ def register(sub: Any) -> None:
         "(auto, the default; --quick defaults to synthetic)",
     )
     cb.add_argument("--handeye-poses", type=int, default=20, help="gripper poses of the headline run (default 20)")
-    cb.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config of the sim hand-eye run")
+    cb.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config of the sim hand-eye run")
     cb.add_argument("--out", type=Path, default=Path("bench_out/calibration"), help="chart folder (created)")
     cb.add_argument("--quick", action="store_true", help="2 seeds, 2 trials per point: a few seconds (tests)")
     cb.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
@@ -192,7 +191,7 @@ def register(sub: Any) -> None:
     cb.set_defaults(handler=_calibration)
 
     pr = benches.add_parser("paired-timing", help="wall time per paired subtask, real and imagined branch separately")
-    pr.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    pr.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     pr.add_argument("--task", default="sort_cubes", help="task (default sort_cubes)")
     pr.add_argument("--checkpoint", default="", help="policy checkpoint (default: the rig's best)")
     pr.add_argument("--subtasks", type=int, default=3, help="paired subtasks (default 3)")
@@ -209,7 +208,7 @@ def register(sub: Any) -> None:
         action="store_true",
         help="3 tasks × 2 checkpoints × 3 subtasks, shipped v2, paper-faithful, Ctrl-World-style",
     )
-    pt.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    pt.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     pt.add_argument(
         "--out", type=Path, default=None, help="run folders (default bench_runs/paired-quick|full); resumed"
     )
@@ -242,7 +241,7 @@ def register(sub: Any) -> None:
         action="store_true",
         help="steps 1,4,16, 24 held-out clips, 3 timed rounds; closed loop on 6 pairs, v1 at 1 step and v2 only",
     )
-    sa.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    sa.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     sa.add_argument("--steps", default="", help="comma-separated v1 sampling steps (default 1,2,4,8,16; quick 1,4,16)")
     sa.add_argument("--clips", type=int, default=None, help="held-out clips per point (default 24 quick / 96)")
     sa.add_argument(
@@ -276,7 +275,7 @@ def register(sub: Any) -> None:
         default="",
         help="bench variants side by side, comma-separated (default: pilworld,v2_paper_gamma)",
     )
-    st.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    st.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     st.add_argument("--subtasks", type=int, default=None, help="20-round pairs per task × checkpoint (default 1 / 5)")
     st.add_argument("--starts", type=int, default=None, help="probe starts per task × checkpoint (default 1 / 4)")
     st.add_argument("--out", type=Path, default=None, help="run folders (default bench_runs/stability-quick|full)")
@@ -287,7 +286,7 @@ def register(sub: Any) -> None:
 
     jd = benches.add_parser("judges", help="image-only success judge vs the simulator's checker on a dataset")
     jd.add_argument("dataset", type=Path, help="a dataset with sim_checker verdicts (e.g. from pilworld sim collect)")
-    jd.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    jd.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     jd.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     jd.set_defaults(handler=_judges)
 
@@ -315,7 +314,7 @@ def register(sub: Any) -> None:
 
     hl = benches.add_parser("hallucination", help="hallucination detector on injected faults and clean episodes")
     hl.add_argument("dataset", type=Path, help="a dataset of real-branch episodes (e.g. from pilworld sim collect)")
-    hl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    hl.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     hl.add_argument("--per-fault", type=int, default=None, help="faulted episodes per fault type (default: all)")
     hl.add_argument("--seed", type=int, default=0)
     hl.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
@@ -339,7 +338,7 @@ def register(sub: Any) -> None:
         help="world-model checkpoint (default: v1, pilworld.world_model.V1_CHECKPOINT)",
     )
     wm.add_argument("--adapter", default=None, help="LoRA adapter of the checkpoint to apply (a task name)")
-    wm.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    wm.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     wm.add_argument("--tasks", default="all", help="comma-separated tasks of the held-out runs (default all)")
     wm.add_argument("--episodes", type=int, default=2, help="held-out runs per task and checkpoint (default 2)")
     wm.add_argument("--seed0", type=int, default=None, help="first held-out seed (default 1000000; training used 0-19)")
@@ -362,7 +361,7 @@ def register(sub: Any) -> None:
         default="",
         help="NAME=FOLDER,... (default: v1 = sim_small, v2 = the shipped sim_composite); ratios to the first",
     )
-    cl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    cl.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     cl.add_argument("--task", default="sort_cubes", help="task of the start and of the adapter (default sort_cubes)")
     cl.add_argument("--repeats", type=int, default=20, help="timed rounds per model; the median is reported")
     cl.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
@@ -375,7 +374,7 @@ def register(sub: Any) -> None:
     wl.add_argument("--quick", action="store_true", help="3 tasks × 3 checkpoints × 1 subtask (≤ 5 min on 2 cores)")
     wl.add_argument("--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 1 quick / 2)")
     wl.add_argument("--model", type=Path, default=None, help="world-model folder (default: v1, sim_small)")
-    wl.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    wl.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     wl.add_argument("--rungs", default="", help="comma-separated rungs (default: all four)")
     wl.add_argument("--tasks", default="all", help="comma-separated tasks (default all three)")
     wl.add_argument("--checkpoints", default="", help="comma-separated scripted checkpoints (default: 3 quick / all 5)")

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import DEFAULT_RIG
+from simrig.files import SIM_RIG
 
 
 def register(sub: Any) -> None:
@@ -25,7 +25,7 @@ def register(sub: Any) -> None:
     p.add_argument("--subtasks", type=int, default=None, help="subtasks per task and checkpoint (default 6; --full 20)")
     p.add_argument("--rounds", type=int, default=None, help="closed-loop rounds per subtask (default 5)")
     p.add_argument("--seed", type=int, default=None, help="first layout seed (default 5000000, unseen in training)")
-    p.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    p.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     p.add_argument("--workers", type=int, default=None, help="processes judging the episodes (default: CPUs)")
     p.add_argument(
         "--appearance",

@@ -10,9 +10,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import DEFAULT_RIG
 from pilworld.cli.checks import ROUNDS, SAMPLING_STEPS, SEED, STARTS, SUBTASKS, bounded, check_count
 from pilworld.collection.tasks import APPEARANCES
+from simrig.files import SIM_RIG
 
 
 def register(sub: Any) -> None:
@@ -25,7 +25,7 @@ def register(sub: Any) -> None:
         description="Each subtask twice from the same start observation, history, instruction, checkpoint and seed: "
         "in the world model (origin imagined) and on the robot (origin real). Rerunning the same command resumes.",
     )
-    r.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    r.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     r.add_argument("--task", required=True, help=TASK_HELP)
     task_options(r)
     r.add_argument(
@@ -70,7 +70,7 @@ def register(sub: Any) -> None:
         "the rig records the start and its history while the arms hold still. pilworld imagine --starts DIR then "
         "runs imagined-only branches from them.",
     )
-    s.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    s.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     s.add_argument("--task", required=True, help=TASK_HELP)
     task_options(s)
     s.add_argument("--count", type=int, required=True, help=bounded("starts per task", STARTS))

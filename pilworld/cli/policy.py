@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import DEFAULT_RIG
+from simrig.files import SIM_RIG
 
 
 def register(sub: Any) -> None:
@@ -24,7 +24,7 @@ def register(sub: Any) -> None:
 
     s = cmds.add_parser("serve", help="serve a scripted checkpoint on ws://HOST:PORT (openpi wire format)")
     s.add_argument("--checkpoint", default="scripted_step_30k", help="scripted checkpoint (default scripted_step_30k)")
-    s.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    s.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     s.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
     s.add_argument("--port", type=int, default=8000, help="port (default 8000, openpi's; 0 = any free port)")
     s.add_argument("--seed", type=int, default=0, help="the policy's seed until a client resets it (default 0)")

@@ -12,9 +12,10 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import DEFAULT_RIG, _names
+from pilworld.cli.bench import _names
 from pilworld.cli.checks import EPISODES, SCALE, SEED, SUBTASK_INDEX, WORKERS, bounded, check_count
 from pilworld.collection.tasks import APPEARANCES
+from simrig.files import SIM_RIG
 
 
 def register(sub: Any) -> None:
@@ -35,7 +36,7 @@ def register(sub: Any) -> None:
     c.add_argument("--checkpoint", default="all", help="scripted checkpoint(s), comma-separated, or 'all'")
     c.add_argument("--episodes", type=int, required=True, help=bounded("runs per task and checkpoint", EPISODES))
     c.add_argument("--out", type=Path, required=True, help="dataset folder (created or resumed)")
-    c.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    c.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     c.add_argument("--seed", type=int, default=0, help=bounded("layout seed of the first run (default 0)", SEED))
     c.add_argument("--workers", type=int, default=None, help=bounded("processes (default: CPUs)", WORKERS))
     c.add_argument("--video-mode", default="h264", choices=["h264", "lossless", "av1"])
@@ -47,7 +48,7 @@ def register(sub: Any) -> None:
     s.add_argument("--seed", type=int, default=0, help="layout seed (default 0)")
     s.add_argument("--subtask", type=int, default=0, help="subtask whose start to show (default 0)")
     s.add_argument("--out", type=Path, required=True, help="PNG file to write")
-    s.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    s.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     s.add_argument("--scale", type=int, default=2, help="integer upscaling of the image (default 2)")
     s.set_defaults(handler=_show)
 

@@ -18,8 +18,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import DEFAULT_RIG, _names
+from pilworld.cli.bench import _names
 from pilworld.collection.tasks import APPEARANCES
+from simrig.files import SIM_RIG
 
 SPREAD_WORST = 0.3  # the worst checkpoint succeeds at most this often …
 SPREAD_BEST = 0.9  # … and the best at least this often
@@ -51,7 +52,7 @@ def register(sub: Any) -> None:
     s.add_argument("--out", type=Path, required=True, help="PNG file to write")
     s.add_argument("--seed", type=int, default=0, help="layout seed (default 0)")
     s.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
-    s.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    s.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     s.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     s.set_defaults(handler=_show)
 
@@ -68,7 +69,7 @@ def register(sub: Any) -> None:
     t.add_argument("--seed", type=int, default=0, help="layout seed of the first start (default 0)")
     t.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
     t.add_argument("--workers", type=int, default=None, help="processes (default: CPUs) [1..256]")
-    t.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config (default: the simulated rig)")
+    t.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
     t.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     t.set_defaults(handler=_try)
 

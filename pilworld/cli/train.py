@@ -11,14 +11,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import DEFAULT_RIG
 from pilworld.cli.control_video import parse_size
+from simrig.files import SIM_RIG, SIM_RIG_IN_CHECKOUT
 
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", type=Path, required=True, help="training dataset folder (LeRobot v3.0 layout)")
     p.add_argument("--out", type=Path, required=True, help="run folder (created, or resumed when it exists)")
-    p.add_argument("--rig", type=Path, default=DEFAULT_RIG, help="rig config for the control video (default: sim)")
+    p.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config for the control video (default: sim)")
     p.add_argument("--steps", type=int, default=4000, help="Ψ_θ (or LoRA) optimiser steps (default 4000)")
     p.add_argument("--batch", type=int, default=16, help="clips per step, over all processes (default 16)")
     p.add_argument("--lr", type=float, default=None, help="learning rate (default 3e-4; LoRA 1e-3)")
@@ -76,7 +76,7 @@ def register(sub: Any) -> None:
     )
     comp.add_argument("--data", type=Path, required=True, help="training dataset (pilworld sim collect)")
     comp.add_argument("--out", type=Path, required=True, help="run folder (created or resumed)")
-    comp.add_argument("--rig", default="configs/rig/sim_dual_ur5e.yaml", help="rig config whose geometry it composites")
+    comp.add_argument("--rig", default=SIM_RIG_IN_CHECKOUT, help="rig config whose geometry it composites")
     comp.add_argument("--steps", type=int, default=4000, help="optimiser steps (default 4000; may grow on resume)")
     comp.add_argument("--batch", type=int, default=32, help="samples (view × frame) per step (default 32)")
     comp.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (default 2e-3)")

@@ -44,13 +44,13 @@ from pilworld.policies.base import PolicyError
 from pilworld.starts.sources import StartsSource, load_starts
 from pilworld.starts.store import StartsError, robot_spec_from_json, robot_spec_json
 from pilworld.types import ChunkSpec, RobotSpec
+from simrig.files import SIM_RIG
 from simrig.tasks import Task
 
 CONFIG_FILE = "imagine_config.json"
 
 
 TIMINGS_FILE = "imagine_timings.jsonl"
-DEFAULT_RIG = str(Path(__file__).resolve().parents[2] / "configs" / "rig" / "sim_dual_ur5e.yaml")
 
 
 @dataclass
@@ -390,7 +390,7 @@ def imagine_run(
     history = cfg.spec.history if cfg.spec is not None else ChunkSpec().history
     source = load_starts(cfg.starts, history=history, start_frame=cfg.start_frame)
     if not cfg.rig:
-        cfg = dataclasses.replace(cfg, rig=str((source.meta or {}).get("rig") or DEFAULT_RIG))
+        cfg = dataclasses.replace(cfg, rig=str((source.meta or {}).get("rig") or SIM_RIG))
     if cfg.spec is None:
         chunk = (source.meta or {}).get("chunk")
         cfg = dataclasses.replace(cfg, spec=ChunkSpec(**chunk) if chunk else ChunkSpec())

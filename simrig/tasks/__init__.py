@@ -18,6 +18,7 @@ from pathlib import Path
 import yaml
 
 from pilworld.config.loader import ConfigError
+from simrig.files import TASKS_DIR
 from simrig.tasks.base import Layout, ObjectPose, PlacementCheck
 from simrig.tasks.checks import build_problems, check_task
 from simrig.tasks.errors import validation_lines
@@ -25,7 +26,6 @@ from simrig.tasks.mesh import MeshError
 from simrig.tasks.schema import TaskFile
 from simrig.tasks.task import Task
 
-TASKS_DIR = Path(__file__).resolve().parents[2] / "configs" / "tasks"
 # The paper's three tasks: the default set of the demo and the benchmarks.
 PAPER_TASKS = ("sort_cubes", "stack_bowls", "stack_blocks")
 TASK_NAMES = PAPER_TASKS

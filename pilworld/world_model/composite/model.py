@@ -35,6 +35,7 @@ from pilworld.world_model.composite.net import N_VIEWS, CompositeUNet, RobotPain
 from pilworld.world_model.composite.object_draw import draw_objects, erase_elsewhere, view_cameras
 from pilworld.world_model.composite.objects import ObjectScene, estimate_scene, spec_for
 from pilworld.world_model.composite.switches import Switches, token_planes
+from simrig.files import SIM_RIG_IN_CHECKOUT, resolve_rig
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 
@@ -43,7 +44,7 @@ REPO_ROOT = Path(__file__).resolve().parents[3]
 class CompositeConfig:
     """Sizes of world model v2 and the rig whose geometry it composites."""
 
-    rig: str = "configs/rig/sim_dual_ur5e.yaml"  # relative paths resolve against the repository root
+    rig: str = SIM_RIG_IN_CHECKOUT  # relative paths resolve against the repository root
     views: tuple[str, ...] = DEFAULT_VIEWS
     image_size: int = 128
     work_size: int = 32  # the U-Net's resolution; the composite is at image_size (training: at the cache's)
@@ -82,8 +83,7 @@ class CompositeConfig:
         return cls(**{**d, "views": tuple(d.get("views", DEFAULT_VIEWS)), "switches": switches})
 
     def rig_path(self) -> Path:
-        p = Path(self.rig)
-        return p if p.is_absolute() else REPO_ROOT / p
+        return resolve_rig(self.rig, REPO_ROOT)
 
 
 # Base channel layout (see cache.chunk_channels): prior 0-2, prior valid 3, current 4-6, carry L 7-9, valid 10,

@@ -34,6 +34,7 @@ from pilworld.world_model.composite.cache import CacheSpec, build_cache, build_e
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
 from pilworld.world_model.composite.switches import Switches
 from pilworld.world_model.training.state import EMA, latest_checkpoint, load_checkpoint, save_checkpoint
+from simrig.files import SIM_RIG_IN_CHECKOUT
 
 PHASE = "composite"
 CHANGED = 0.08  # a target pixel this far (max over channels, in [0, 1]) from the current frame "changed"
@@ -44,7 +45,7 @@ GRIP_WEIGHT = 2.0
 @dataclass(frozen=True)
 class TrainSettings:
     data: str
-    rig: str = "configs/rig/sim_dual_ur5e.yaml"
+    rig: str = SIM_RIG_IN_CHECKOUT
     steps: int = 4000
     batch: int = 32
     lr: float = 2e-3
