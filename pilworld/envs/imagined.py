@@ -28,7 +28,7 @@ from hw_drivers.safety import SafetyFilter
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs.base import EnvError, as_chunk
 from pilworld.types import ActionChunk, ChunkSpec, Observation, Segment, Start
-from pilworld.world_model.base import PredictRequest, WorldModel
+from pilworld.world_model.base import PredictRequest, StatefulRollout, WorldModel
 
 
 class HistoryMemory:
@@ -139,9 +139,8 @@ class ImaginedEnv:
             self.safety.reset(obs.state)
         self._obs = obs
         self._instruction = start.subtask.instruction  # conditions the world model
-        begin = getattr(self.model, "begin_rollout", None)
-        if callable(begin):  # a model that carries state across the rollout's chunks (v2: its tracked objects)
-            begin(dict(obs.images), obs.state, self._instruction)
+        if isinstance(self.model, StatefulRollout):  # it carries state across the chunks (v2: tracked objects)
+            self.model.begin_rollout(dict(obs.images), obs.state, self._instruction)
         self._round = 0
         return obs
 
@@ -169,10 +168,9 @@ class ImaginedEnv:
         )
         # A different seed per round, fixed per (env seed, round): reruns reproduce the same rollout.
         seed = self.seed * 1000 + self._round
-        predict_with_state = getattr(self.model, "predict_with_state", None)
-        if callable(predict_with_state):
+        if isinstance(self.model, StatefulRollout):
             # A model that predicts the state the robot will report (v2: a gripper resting on what it holds).
-            frames, states = predict_with_state(request, steps=self.steps, seed=seed)
+            frames, states = self.model.predict_with_state(request, steps=self.steps, seed=seed)
             states = np.asarray(states, dtype=np.float32)
             if states.shape != stride_actions.shape or not np.all(np.isfinite(states)):
                 raise EnvError(

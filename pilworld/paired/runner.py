@@ -51,7 +51,7 @@ from pilworld.rollout import Rollout, closed_loop
 from pilworld.starts.sources import PAIRED_STARTS
 from pilworld.starts.store import StartsWriter, start_id
 from pilworld.types import ChunkSpec, Start, Subtask
-from pilworld.world_model.base import WorldModel
+from pilworld.world_model.base import HistoryAblation, RigBound, WorldModel
 from simrig.tasks import Task
 
 ORIGINS = ("imagined", "real")
@@ -286,14 +286,12 @@ def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel
             raise ValueError(f"adapter: {cfg.adapter!r} is not in {path} (has {names or 'none'})")
         adapter = cfg.adapter
     model: WorldModel = load_world_model(path, adapter=adapter)
-    bind_rig = getattr(model, "bind_rig", None)
-    if callable(bind_rig):  # a model that composites the rig's geometry (v2) uses this rig's calibration
-        bind_rig(rig)
+    if isinstance(model, RigBound):  # a model that composites the rig's geometry (v2) uses this rig's calibration
+        model.bind_rig(rig)
     if not cfg.history:
-        without = getattr(model, "without_history", None)
-        if without is None:
+        if not isinstance(model, HistoryAblation):
             raise ValueError(f"history: the model in {path} has no history memory to hide")
-        model = without()
+        model = model.without_history()
     size = (rig.image_size.width, rig.image_size.height)
     if cfg.resize and (model.info.width, model.info.height) != size:
         from pilworld.world_model.resized import ResizedWorldModel

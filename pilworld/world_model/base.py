@@ -12,19 +12,35 @@ Two levels:
   :class:`pilworld.data.clip_dataset.ClipDataset` plus ``control``). Training and benchmarks use it.
 
 Images are uint8 RGB everywhere at the boundary; backends convert to their own range inside.
+
+Every model offers :class:`WorldModel`. Some offer more, each an optional capability with a protocol of
+its own that a caller queries with ``isinstance`` (the protocols are runtime-checkable), never by probing
+attribute names:
+
+* :class:`RigBound` — the model composites the rig's geometry (world model v2): ``bind_rig(rig)`` makes it
+  use this rig's robot model and camera calibration;
+* :class:`StatefulRollout` — the model carries state across the chunks of one rollout (v2: its tracked
+  objects): ``begin_rollout`` at the imagined branch's reset, then ``predict_with_state`` per chunk, which
+  also predicts the joint state the robot will report;
+* :class:`HistoryAblation` — the model can run with its history memory hidden (``without_history``), the
+  paper's no-history ablation.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 import torch
 from numpy.typing import NDArray
 
 from pilworld.types import STATE_DIM
+
+if TYPE_CHECKING:
+    from pilworld.config.rig import RigConfig
+    from pilworld.control_video.robot_model import RobotModel
 
 
 @dataclass(frozen=True)
@@ -219,6 +235,41 @@ class WorldModel(Protocol):
         self, request: PredictRequest, *, steps: int | None = None, seed: int = 0
     ) -> dict[str, NDArray[np.uint8]]:
         """One sample: view -> uint8 [K, H, W, 3]."""
+        ...
+
+
+@runtime_checkable
+class RigBound(Protocol):
+    """A world model that composites the rig's geometry; bound to the rig it runs on before a rollout."""
+
+    def bind_rig(self, rig: RigConfig, *, robot: RobotModel | None = None) -> None:
+        """Use ``rig``'s robot model and cameras (``robot``: render this robot model instead)."""
+        ...
+
+
+@runtime_checkable
+class StatefulRollout(Protocol):
+    """A world model that carries state across one rollout's chunks and predicts the reported joint state."""
+
+    def begin_rollout(
+        self, current: dict[str, NDArray[np.uint8]], state: NDArray[np.floating], instruction: str
+    ) -> None:
+        """Start a rollout from its first frames (view -> uint8 [H, W, 3]) and joint state."""
+        ...
+
+    def predict_with_state(
+        self, request: PredictRequest, *, steps: int | None = None, seed: int = 0
+    ) -> tuple[dict[str, NDArray[np.uint8]], NDArray[np.float32]]:
+        """One chunk: view -> uint8 [K, H, W, 3], and the [K, STATE_DIM] state the robot will report."""
+        ...
+
+
+@runtime_checkable
+class HistoryAblation(Protocol):
+    """A world model that can run with its history memory hidden (the no-history ablation)."""
+
+    def without_history(self) -> WorldModel:
+        """The same model, ignoring every history frame."""
         ...
 
 

@@ -19,10 +19,11 @@ import pytest
 
 from pilworld.cli.main import main
 from pilworld.data.reader import EpisodeStore
-from pilworld.imagine.runner import DEFAULT_RIG, ImagineConfig, imagine_run
+from pilworld.imagine.runner import ImagineConfig, imagine_run
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.starts import StartsError, load_starts
 from pilworld.types import ChunkSpec
+from simrig.files import SIM_RIG
 
 CKPTS = ["scripted_step_30k", "scripted_step_05k"]
 SPEC = ChunkSpec(rounds=2)
@@ -33,7 +34,7 @@ def paired(tmp_path_factory: pytest.TempPathFactory) -> Path:
     os.environ.setdefault("MUJOCO_GL", "egl")
     out = tmp_path_factory.mktemp("imagine") / "paired"
     cfg = PairedConfig(
-        rig=DEFAULT_RIG, task="sort_cubes", checkpoints=CKPTS, subtasks=2, out=str(out), seed=7_300_000, spec=SPEC
+        rig=str(SIM_RIG), task="sort_cubes", checkpoints=CKPTS, subtasks=2, out=str(out), seed=7_300_000, spec=SPEC
     )
     paired_run(cfg, progress=False)
     return out

@@ -18,8 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pilworld.imagine.runner import DEFAULT_RIG, ImagineConfig, imagine_run
+from pilworld.imagine.runner import ImagineConfig, imagine_run
 from pilworld.types import ChunkSpec
+from simrig.files import SIM_RIG
 
 RAY = Path(sys.executable).with_name("ray")  # the ray CLI of the interpreter running the tests
 SPEC = ChunkSpec(rounds=1)  # one closed-loop round keeps each branch short
@@ -40,9 +41,9 @@ def starts(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("starts")
     instruction = make_task("sort_cubes").instruction
     with (
-        SimStation(DEFAULT_RIG, "sort_cubes") as station,
+        SimStation(str(SIM_RIG), "sort_cubes") as station,
         StartsWriter(
-            root, dataset_spec(str(DEFAULT_RIG), "lossless", SPEC), station.robot.spec, SPEC, rig=str(DEFAULT_RIG)
+            root, dataset_spec(str(SIM_RIG), "lossless", SPEC), station.robot.spec, SPEC, rig=str(SIM_RIG)
         ) as writer,
     ):
         for i in (0, 1):
@@ -156,7 +157,7 @@ def test_a_failing_job_raises_its_own_error(starts: Path, ray_cluster: str, tmp_
     from pilworld.starts.sources import load_starts
     from pilworld.starts.store import robot_spec_json
 
-    cfg = ImagineConfig(starts=str(starts), checkpoints=CHECKPOINTS, out=str(tmp_path), rig=str(DEFAULT_RIG), spec=SPEC)
+    cfg = ImagineConfig(starts=str(starts), checkpoints=CHECKPOINTS, out=str(tmp_path), rig=str(SIM_RIG), spec=SPEC)
     source = load_starts(cfg.starts, history=SPEC.history, start_frame=None)
     jobs = plan_jobs(cfg, source)
     jobs[1] = dataclasses.replace(jobs[1], starts_root=str(tmp_path / "missing"))

@@ -13,13 +13,14 @@ from pilworld.bench.ppi import Population, evaluate_setting, run_ppi_bench, synt
 from pilworld.cli.main import main
 from pilworld.data.outcomes import Outcome, read_outcomes, record_outcomes
 from pilworld.data.reader import EpisodeStore
-from pilworld.imagine.runner import DEFAULT_RIG, ImagineConfig, imagine_run
+from pilworld.imagine.runner import ImagineConfig, imagine_run
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.paired.record_starts import record_starts
 from pilworld.ppi import ppi_mean
 from pilworld.ppi.outcomes import read_run_outcomes
 from pilworld.ppi.section import ppi_section
 from pilworld.types import ChunkSpec
+from simrig.files import SIM_RIG
 
 CKPTS = ["scripted_step_30k", "scripted_step_01k"]
 SPEC = ChunkSpec(rounds=1)
@@ -41,12 +42,12 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     base = tmp_path_factory.mktemp("ppi")
     paired = base / "paired"
     cfg = PairedConfig(
-        rig=DEFAULT_RIG, task="sort_cubes", checkpoints=CKPTS, subtasks=3, out=str(paired), seed=7_400_000, spec=SPEC
+        rig=str(SIM_RIG), task="sort_cubes", checkpoints=CKPTS, subtasks=3, out=str(paired), seed=7_400_000, spec=SPEC
     )
     paired_run(cfg, progress=False)
     _vision_verdicts(paired, [True, True, False])
     starts = base / "starts"
-    record_starts(DEFAULT_RIG, "sort_cubes", 4, starts, seed=7_500_000, spec=SPEC, progress=False)
+    record_starts(str(SIM_RIG), "sort_cubes", 4, starts, seed=7_500_000, spec=SPEC, progress=False)
     imagined = base / "imagined"
     imagine_run(ImagineConfig(starts=str(starts), checkpoints=CKPTS, out=str(imagined)), progress=False)
     _vision_verdicts(imagined, [True, False])
@@ -94,7 +95,7 @@ def test_imagined_branches_of_a_checkpoint_without_pairs_are_refused(
 ) -> None:
     paired, _ = runs
     starts = tmp_path / "starts"
-    record_starts(DEFAULT_RIG, "sort_cubes", 1, starts, seed=7_600_000, spec=SPEC, progress=False)
+    record_starts(str(SIM_RIG), "sort_cubes", 1, starts, seed=7_600_000, spec=SPEC, progress=False)
     other = tmp_path / "other"
     imagine_run(ImagineConfig(starts=str(starts), checkpoints=["scripted_step_05k"], out=str(other)), progress=False)
     _vision_verdicts(other, [True])
