@@ -273,7 +273,8 @@ def _check_config(root: Path, cfg: PairedConfig, tasks: Sequence[Task], *, write
 def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel, str | None]:
     """The world model for ``task`` (its adapter under ``adapter="auto"``), checked against the rig."""
     from pilworld.world_model import DEFAULT_CHECKPOINT
-    from pilworld.world_model.checkpoint import adapter_names, load_world_model
+    from pilworld.world_model.base import WorldModelInfo
+    from pilworld.world_model.loader import adapter_names, load_world_model
 
     path = Path(cfg.world_model) if cfg.world_model else Path(DEFAULT_CHECKPOINT)
     names = adapter_names(path)
@@ -285,7 +286,15 @@ def load_model(cfg: PairedConfig, rig: RigConfig, task: str) -> tuple[WorldModel
         if cfg.adapter not in names:
             raise ValueError(f"adapter: {cfg.adapter!r} is not in {path} (has {names or 'none'})")
         adapter = cfg.adapter
-    model: WorldModel = load_world_model(path, adapter=adapter)
+    # What the rig records: a folder that does not say its views and sizes (a stock Wan2.1) predicts these.
+    rig_info = WorldModelInfo(
+        views=tuple(rig.cameras),
+        height=rig.image_size.height,
+        width=rig.image_size.width,
+        future=cfg.spec.frames,
+        history=cfg.spec.history,
+    )
+    model = load_world_model(path, adapter=adapter, info=rig_info)
     if isinstance(model, RigBound):  # a model that composites the rig's geometry (v2) uses this rig's calibration
         model.bind_rig(rig)
     if not cfg.history:

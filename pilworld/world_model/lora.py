@@ -16,6 +16,7 @@ import torch
 from safetensors.torch import load_file
 
 from pilworld.world_model.denoiser import LORA_TARGETS
+from pilworld.world_model.folder import save_tensors
 from pilworld.world_model.model import PilWorldModel
 
 
@@ -47,7 +48,6 @@ def adapter_state(model: PilWorldModel) -> dict[str, torch.Tensor]:
 
 def save_adapter(model: PilWorldModel, folder: Path, rank: int, alpha: float | None = None) -> None:
     from pilworld.data.atomic import write_json
-    from pilworld.world_model.checkpoint import save_tensors
 
     folder.mkdir(parents=True, exist_ok=True)
     save_tensors(folder / "adapter.safetensors", {k: v.half() for k, v in adapter_state(model).items()})

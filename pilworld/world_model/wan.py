@@ -42,13 +42,16 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
+from pilworld.types import STATE_DIM
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo, predict_one
+from pilworld.world_model.folder import folder_format, read_folder_config
 
 if TYPE_CHECKING:  # the defining modules: mypy would resolve diffusers' top level to its no-torch dummies
     from diffusers.models.autoencoders.autoencoder_kl_wan import AutoencoderKLWan
     from diffusers.models.transformers.transformer_wan import WanTransformer3DModel
 
 _EXTRA = "pip install 'pilworld[wan]'"
+FORMAT = "pilworld-wan2.1/1"  # config.json of a folder save_pretrained wrote: the views, sizes and sampler
 _SHIFT = 5.0  # Wan2.1's flow shift for 480p when the folder has no scheduler config
 
 
@@ -135,6 +138,33 @@ def _widen_patch_embedding(transformer: WanTransformer3DModel, in_channels: int)
     transformer.register_to_config(in_channels=in_channels)  # type: ignore[no-untyped-call]  # so save_pretrained records it
 
 
+WAN_LAYOUT = "a diffusers-format Wan2.1 folder with transformer/ and vae/ subfolders (config.json + weights)"
+
+
+def is_wan_folder(folder: str | Path) -> bool:
+    root = Path(folder)
+    return all((root / sub / "config.json").is_file() for sub in ("transformer", "vae"))
+
+
+def _saved_settings(folder: Path) -> tuple[WorldModelInfo, int] | None:
+    """The info and default steps :meth:`WanWorldModel.save_pretrained` wrote; None for a stock folder."""
+    if folder_format(folder) != FORMAT:
+        return None
+    c = read_folder_config(folder, FORMAT)
+    try:
+        info = WorldModelInfo(
+            views=tuple(c["views"]),
+            height=c["height"],
+            width=c["width"],
+            future=c["future"],
+            history=c["history"],
+            action_dim=c.get("action_dim", STATE_DIM),
+        )
+        return info, int(c.get("default_steps", 30))
+    except (KeyError, TypeError, ValueError) as err:
+        raise ValueError(f"{folder / 'config.json'}: not a valid Wan2.1 settings object ({err})") from None
+
+
 class WanWorldModel:
     """A Wan2.1 video diffusion backbone as a :class:`~pilworld.world_model.base.WorldModel`."""
 
@@ -215,22 +245,31 @@ class WanWorldModel:
     def from_pretrained(
         cls,
         folder: Path,
-        info: WorldModelInfo,
+        info: WorldModelInfo | None = None,
         *,
         device: str | torch.device = "cpu",
         torch_dtype: torch.dtype = torch.float32,
         flow_shift: float | None = None,
-        default_steps: int = 30,
+        default_steps: int | None = None,
     ) -> WanWorldModel:
         """Load a local diffusers-format Wan2.1 folder (``transformer/``, ``vae/``; optional ``scheduler/``
-        and ``instruction_encoder/``). Never downloads. The VAE stays float32, as Wan recommends."""
+        and ``instruction_encoder/``). Never downloads. The VAE stays float32, as Wan recommends.
+
+        ``info`` (views, image size, K, H_h): from the folder's ``config.json`` when :meth:`save_pretrained`
+        wrote one, else it must be given (a stock Wan2.1 folder knows nothing of the rig)."""
         folder = Path(folder)
-        expected = "a diffusers-format Wan2.1 folder with transformer/ and vae/ subfolders (config.json + weights)"
-        if not folder.is_dir():
-            raise FileNotFoundError(f"Wan2.1 folder {folder} does not exist; expected {expected}")
-        for sub in ("transformer", "vae"):
-            if not (folder / sub / "config.json").is_file():
-                raise FileNotFoundError(f"{folder / sub / 'config.json'} not found; expected {expected}")
+        if not is_wan_folder(folder):
+            raise FileNotFoundError(f"{folder}: not a Wan2.1 folder; expected {WAN_LAYOUT}")
+        saved = _saved_settings(folder)
+        if info is None:
+            if saved is None:
+                raise ValueError(
+                    f"{folder}: a stock Wan2.1 folder does not say which views, image size, K and H_h to predict; "
+                    "pass the rig's (the paired runner does) or save it with WanWorldModel.save_pretrained"
+                )
+            info = saved[0]
+        if default_steps is None:
+            default_steps = saved[1] if saved is not None else 30
         d = _diffusers()
         transformer = d.WanTransformer3DModel.from_pretrained(
             str(folder / "transformer"), local_files_only=True, torch_dtype=torch_dtype
@@ -256,8 +295,23 @@ class WanWorldModel:
         return model
 
     def save_pretrained(self, folder: Path) -> None:
-        """Write a folder :meth:`from_pretrained` reads back (transformer, vae, scheduler, instruction encoder)."""
+        """Write a folder :meth:`from_pretrained` reads back (transformer, vae, scheduler, instruction encoder,
+        and ``config.json``: the views, image size, K, H_h and default steps)."""
+        from pilworld.data.atomic import write_json
+
         folder = Path(folder)
+        info = self._info
+        config = {
+            "views": list(info.views),
+            "height": info.height,
+            "width": info.width,
+            "future": info.future,
+            "history": info.history,
+            "action_dim": info.action_dim,
+            "default_steps": self.default_steps,
+        }
+        folder.mkdir(parents=True, exist_ok=True)
+        write_json(folder / "config.json", {"format": FORMAT, "config": config})
         self.transformer.save_pretrained(str(folder / "transformer"))
         self.vae.save_pretrained(str(folder / "vae"))
         _diffusers().FlowMatchEulerDiscreteScheduler(shift=self.flow_shift).save_pretrained(str(folder / "scheduler"))

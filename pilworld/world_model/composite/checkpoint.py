@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import torch
 
-from pilworld.world_model.checkpoint import CONFIG_FILE, WEIGHTS_FILE, load_weights, save_folder
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
+from pilworld.world_model.folder import (
+    CONFIG_FILE,
+    WEIGHTS_FILE,
+    folder_format,
+    load_weights,
+    read_folder_config,
+    save_folder,
+)
 
 FORMAT = "pilworld-composite-world-model/1"
 
@@ -18,25 +24,14 @@ def save_composite(model: CompositeWorldModel, folder: str | Path, *, dtype: tor
 
 
 def is_composite(folder: str | Path) -> bool:
-    path = Path(folder) / CONFIG_FILE
-    if not path.is_file():
-        return False
-    try:
-        data = json.loads(path.read_text())
-        return isinstance(data, dict) and data.get("format") == FORMAT
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        return False
+    return folder_format(folder) == FORMAT
 
 
 def load_composite(folder: str | Path) -> CompositeWorldModel:
     root = Path(folder)
-    from pilworld.io.run_folder import read_json_object
-
-    data = read_json_object(root / CONFIG_FILE, "world model")
-    if data.get("format") != FORMAT:
-        raise ValueError(f"{root / CONFIG_FILE}: format {data.get('format')!r} is not {FORMAT!r}")
+    data = read_folder_config(root, FORMAT)
     try:
-        config = CompositeConfig.from_dict(data["config"])
+        config = CompositeConfig.from_dict(data)
     except (KeyError, TypeError, ValueError, AttributeError) as err:
         raise ValueError(
             f"{root / CONFIG_FILE}: not a valid world-model config ({type(err).__name__}: {err})"

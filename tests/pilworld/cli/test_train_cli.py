@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from pilworld.cli.main import main
-from pilworld.world_model.checkpoint import load_world_model
+from pilworld.world_model.loader import load_world_model
 from tests.pilworld.world_model.training.synthetic_data import SIM_RIG, write_dataset
 
 

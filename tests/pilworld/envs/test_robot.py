@@ -17,7 +17,7 @@ from pilworld.policies.scripted import ScriptedPolicy
 from pilworld.rollout import closed_loop
 from pilworld.types import ChunkSpec, Observation, Segment
 from pilworld.world_model import DEFAULT_CHECKPOINT
-from pilworld.world_model.checkpoint import load_world_model
+from pilworld.world_model.loader import load_world_model
 from simrig.robot import SimRobot
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"

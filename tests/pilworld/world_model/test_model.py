@@ -19,9 +19,10 @@ import torch
 from safetensors.torch import load_file
 
 from pilworld.world_model.base import PredictRequest, WorldModel, WorldModelBatch
-from pilworld.world_model.checkpoint import load_world_model, save_model
+from pilworld.world_model.checkpoint import save_model
 from pilworld.world_model.config import WorldModelConfig, preset
 from pilworld.world_model.denoiser import Block
+from pilworld.world_model.loader import load_world_model
 from pilworld.world_model.lora import add_lora, save_adapter
 from pilworld.world_model.model import PilWorldModel
 from pilworld.world_model.text import InstructionEncoder, word_buckets
@@ -431,7 +432,7 @@ def test_word_buckets_are_stable() -> None:
 
 def test_export_casts_to_float16_and_gathers_adapters(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from pilworld.cli.main import main
-    from pilworld.world_model.checkpoint import adapter_names
+    from pilworld.world_model.loader import adapter_names
 
     base = make_model(seed=3)
     save_model(base, tmp_path / "s1")

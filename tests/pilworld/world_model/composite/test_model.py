@@ -15,10 +15,10 @@ from pilworld.envs import ImaginedEnv
 from pilworld.judges.vision_tasks import task_spec
 from pilworld.types import ARM_LAYOUT, ChunkSpec, Observation, Start, Subtask
 from pilworld.world_model.base import PredictRequest
-from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.checkpoint import is_composite, load_composite, save_composite
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
 from pilworld.world_model.composite.net import CANDIDATES
+from pilworld.world_model.loader import load_world_model
 from simrig.poses import HOME_Q14
 
 SPEC = ChunkSpec()

@@ -24,8 +24,8 @@ from pilworld.rollout import Rollout, closed_loop
 from pilworld.types import ChunkSpec, Start
 from pilworld.world_model import DEFAULT_CHECKPOINT
 from pilworld.world_model.base import PredictRequest
-from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.model import CompositeWorldModel
+from pilworld.world_model.loader import load_world_model
 from simrig.robot import SimRobot
 from simrig.tasks import load_task
 

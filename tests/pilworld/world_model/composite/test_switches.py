@@ -13,13 +13,13 @@ import torch
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT, ChunkSpec
 from pilworld.world_model.base import PredictRequest
-from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.cache import BASE_CHANNELS, CacheSpec, build_extras, has_extras
 from pilworld.world_model.composite.checkpoint import save_composite
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel, blend, blend_bytes
 from pilworld.world_model.composite.net import CANDIDATES, RobotPainter
 from pilworld.world_model.composite.switches import Switches
 from pilworld.world_model.composite.train import TrainSettings, _successful, train_composite
+from pilworld.world_model.loader import load_world_model
 
 from ..training.synthetic_data import write_dataset
 from .test_model import _request as model_request

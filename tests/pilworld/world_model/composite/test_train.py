@@ -10,10 +10,10 @@ import pytest
 from safetensors.numpy import load_file
 
 from pilworld.config.rig import RigConfig
-from pilworld.world_model.checkpoint import load_world_model
 from pilworld.world_model.composite.cache import CacheSpec, build_cache
 from pilworld.world_model.composite.model import CompositeWorldModel
 from pilworld.world_model.composite.train import TrainSettings, train_composite
+from pilworld.world_model.loader import load_world_model
 
 from ..training.synthetic_data import write_dataset
 
