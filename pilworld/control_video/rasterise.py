@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 from calib.camera_model import CameraModel
 from pilworld.control_video import raycast
 from pilworld.control_video.cameras import RigCameras
+from pilworld.control_video.robot_frames import RobotRender
 from pilworld.control_video.robot_model import (
     BOX,
     CAPSULE,
@@ -48,7 +49,6 @@ from pilworld.control_video.robot_model import (
     SPHERE,
     RobotModel,
 )
-from pilworld.control_video.robot_render import RobotRender
 from pilworld.types import STATE_DIM
 
 CIRCLE_POINTS: Final = 20  # points per sampled circle

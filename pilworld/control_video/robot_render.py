@@ -1,5 +1,8 @@
 """The robot rendered from its own model in every camera of the rig: part-id masks, depth, shaded images.
 
+What a render holds is :class:`~pilworld.control_video.robot_frames.RobotRender` (re-exported here); this
+module chooses the backend.
+
 ``RobotRenderer.from_rig(rig)(q14)`` renders joint vectors (N, 14) — typically the K stride-aligned
 actions of a chunk — in every view: the head camera through its calibrated ``CameraModel``, each wrist
 camera from its mount on the TCP (:mod:`pilworld.control_video.cameras`). The geometry is the robot the
@@ -15,11 +18,12 @@ simulated rig is built from (:mod:`pilworld.control_video.robot_model`). Two bac
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
+
+from pilworld.control_video.robot_frames import RobotRender as RobotRender  # re-exported: the render type
 
 if TYPE_CHECKING:  # MuJoCo loads with the robot model; the CLI imports this module for BACKENDS only
     from pilworld.config.rig import RigConfig
@@ -28,30 +32,6 @@ if TYPE_CHECKING:  # MuJoCo loads with the robot model; the CLI imports this mod
 
 Backend = Literal["analytic", "mujoco"]
 BACKENDS: tuple[Backend, ...] = ("analytic", "mujoco")
-
-
-@dataclass(frozen=True, eq=False)
-class RobotRender:
-    """Renders of N joint vectors in each view (all arrays have N on axis 0).
-
-    ``parts``: uint8 part ids (0 background, 1 left arm, 2 left fingers, 3 right arm, 4 right fingers;
-    :data:`~pilworld.control_video.robot_model.PART_NAMES`). ``depth``: float32 camera-frame depth Z in
-    metres, 0 where there is no robot. ``shaded``: uint8 RGB, the robot lit by a headlight on black.
-    ``depth`` and ``shaded`` are None when not asked for.
-    """
-
-    parts: dict[str, NDArray[np.uint8]]  # view → (N, H, W)
-    depth: dict[str, NDArray[np.float32]] | None = None  # view → (N, H, W)
-    shaded: dict[str, NDArray[np.uint8]] | None = None  # view → (N, H, W, 3)
-
-    @property
-    def views(self) -> tuple[str, ...]:
-        return tuple(self.parts)
-
-    @property
-    def mask(self) -> dict[str, NDArray[np.bool_]]:
-        """view → (N, H, W) True where the robot is."""
-        return {v: p > 0 for v, p in self.parts.items()}
 
 
 class RobotRendererBackend(Protocol):
@@ -84,11 +64,11 @@ def make_robot_renderer(
     robot = robot or RobotModel.from_rig(rig)
     cameras = cameras or RigCameras.from_rig(rig)
     if backend == "analytic":
-        from pilworld.control_video.rasterise import AnalyticRobotRenderer
+        from pilworld.control_video.rasterise import AnalyticRobotRenderer  # OpenCV and ray casting on demand
 
         return AnalyticRobotRenderer(robot, cameras)
     if backend == "mujoco":
-        from pilworld.control_video.robot_render_mujoco import MujocoRobotRenderer
+        from pilworld.control_video.robot_render_mujoco import MujocoRobotRenderer  # MuJoCo only when asked
 
         return MujocoRobotRenderer(robot, cameras)
     raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {backend!r}")

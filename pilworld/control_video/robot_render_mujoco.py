@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pilworld.control_video.cameras import RigCameras, ViewCamera
+from pilworld.control_video.robot_frames import RobotRender
 from pilworld.control_video.robot_model import HIDDEN_GROUP, RobotModel
-from pilworld.control_video.robot_render import RobotRender
 from pilworld.geometry import as_finite_array
 from pilworld.types import STATE_DIM
 from simrig.gl import make_renderer, mujoco

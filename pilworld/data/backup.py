@@ -25,9 +25,9 @@ from pathlib import Path
 import pyarrow.parquet as pq
 
 from pilworld.data import layout
-from pilworld.data.atomic import atomic_write
 from pilworld.data.manifest import META_MANIFEST, FileEntry, FileProblem, check_file, parse_manifest, sha256_file
 from pilworld.data.reader import DatasetError
+from pilworld.io.atomic import atomic_write
 
 BACKUP_DIR = "meta/backup"
 OUTCOMES_MANIFEST = "meta/outcomes_manifest.json"

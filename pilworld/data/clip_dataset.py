@@ -21,11 +21,11 @@ from numpy.typing import NDArray
 from torch.utils.data import Dataset, WeightedRandomSampler
 from tqdm import tqdm
 
-from pilworld.data.atomic import atomic_write
 from pilworld.data.clips import ClipRef, ClipSpec, index_clips, mix_weights
 from pilworld.data.outcomes import read_outcomes
 from pilworld.data.reader import EpisodeStore, list_column
 from pilworld.data.spec import ACTION_KEY, STATE_KEY
+from pilworld.io.atomic import atomic_write
 
 
 def save_npy(path: Path, array: NDArray[Any]) -> None:

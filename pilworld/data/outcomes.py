@@ -35,8 +35,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pilworld.data import layout
-from pilworld.data.atomic import write_json, write_parquet
 from pilworld.data.backup import OUTCOMES_MANIFEST, back_up
+from pilworld.io.atomic import write_json, write_parquet
 
 JudgeKind = Literal["sim_state", "vision", "human"]
 JUDGE_KINDS: tuple[str, ...] = ("sim_state", "vision", "human")

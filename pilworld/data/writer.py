@@ -1,6 +1,6 @@
 """Appending episodes to a LeRobot v3.0 dataset, one committed episode at a time.
 
-Commit protocol for episode ``e`` (every step is a write-then-rename, see :mod:`pilworld.data.atomic`):
+Commit protocol for episode ``e`` (every step is a write-then-rename, see :mod:`pilworld.io.atomic`):
 
 1. its data parquet and one mp4 per view, under file number ``e`` — new files nobody references yet;
 2. ``meta/tasks.parquet`` if the instruction is new (an unused task row is harmless);
@@ -30,7 +30,6 @@ import pyarrow as pa
 from numpy.typing import NDArray
 
 from pilworld.data import layout
-from pilworld.data.atomic import atomic_write, is_temporary, write_json, write_parquet
 from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.manifest import MANIFEST_COLUMN, META_MANIFEST, manifest_json, meta_manifest_text
@@ -38,6 +37,7 @@ from pilworld.data.reader import DatasetError, EpisodeStore
 from pilworld.data.spec import ACTION_KEY, CODEBASE_VERSION, STATE_KEY, DatasetSpec, spec_difference
 from pilworld.data.stats import aggregate, image_stats, to_jsonable, vector_stats
 from pilworld.data.video_codec import encode_video
+from pilworld.io.atomic import atomic_write, is_temporary, write_json, write_parquet
 
 
 def _stat_columns(stats: dict[str, dict[str, NDArray[np.float64]]]) -> dict[str, Any]:

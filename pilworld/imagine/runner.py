@@ -25,10 +25,10 @@ from typing import Any
 
 from tqdm import tqdm
 
-from pilworld.data.atomic import write_json
 from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.writer import EpisodeWriter
+from pilworld.io.atomic import write_json
 from pilworld.paired.revalidate import damaged_branches, restore_run, take_out
 from pilworld.paired.runner import (
     RESUME_HINT,

@@ -194,7 +194,7 @@ def read_marker(out: str | Path, kind: str) -> dict[str, Any] | None:
 
 def claim(out: str | Path, kind: str, settings: dict[str, Any]) -> None:
     """Mark ``out`` as a ``kind`` folder with the command's ``settings`` (after every check passed)."""
-    from pilworld.data.atomic import write_json
+    from pilworld.io.atomic import write_json
 
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)

@@ -14,8 +14,6 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from pilworld.data.video_codec import decode_video
-
 VIDEO_SUFFIXES = (".mp4",)
 IMAGE_SUFFIXES = (".png",)
 
@@ -66,11 +64,6 @@ def write_mp4(
         for packet in stream.encode():
             container.mux(packet)
     return path
-
-
-def read_video(path: str | Path) -> NDArray[np.uint8]:
-    """Decode every frame of a video file as RGB (N, H, W, 3)."""
-    return decode_video(Path(path))
 
 
 def contact_sheet(frames: NDArray[np.uint8], columns: int = 5, gap: int = 2) -> NDArray[np.uint8]:

@@ -14,10 +14,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from pilworld.data.atomic import write_json
+from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
+from pilworld.io.atomic import write_json
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, LEVEL
-from pilworld.metrics.pairs import load_pairs
 from pilworld.metrics.ranking import ranking_metrics
 from pilworld.metrics.ranking_ci import ranking_intervals
 from pilworld.metrics.single_step import DEFAULT_ACTION_ATOL, single_step_metrics
@@ -121,7 +121,7 @@ def compute_run_metrics(
             "method": "percentile; pairs (subtasks) resampled with replacement within each task and overall",
         },
     }
-    from pilworld.annotate.agreement import human_agreement  # here: annotate imports pilworld.metrics
+    from pilworld.metrics.agreement import human_agreement  # here: annotate imports pilworld.metrics
 
     origins = {int(r["episode_index"]): str(r.get("origin") or "") for r in store.episodes}
     out["human_agreement"] = human_agreement(paired, origins, bootstrap=bootstrap, seed=seed)

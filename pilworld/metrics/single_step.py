@@ -30,9 +30,9 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
+from pilworld.data.pairs import Pair
 from pilworld.data.reader import EpisodeStore, list_column
 from pilworld.data.spec import ACTION_KEY
-from pilworld.metrics.pairs import Pair
 from pilworld.world_model.metrics import LpipsFn, SingleStepScores, load_lpips
 
 DEFAULT_ACTION_ATOL = 1e-5  # rad; float32 storage round-trips exactly, so this only absorbs noise

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from pilworld.data.outcomes import Outcome
+from pilworld.data.pairs import Pair, PairedEpisodes
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, bootstrap_means
-from pilworld.metrics.pairs import Pair, PairedEpisodes
 
 CHECKER_KIND = "sim_state"  # privileged simulator checkers: real episodes only, reported apart
 

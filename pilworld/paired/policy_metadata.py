@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pilworld.data.atomic import write_json
 from pilworld.data.backup import back_up
+from pilworld.io.atomic import write_json
 from pilworld.policies.base import PolicyError
 from pilworld.types import ARM_LAYOUT, LEFT_ARM, RIGHT_ARM, STATE_DIM
 

@@ -18,9 +18,10 @@ from typing import TYPE_CHECKING, Any
 from pilworld.data.outcomes import Outcome, read_outcomes, record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
+from pilworld.paired.config import CONFIG_FILE, TASK_HASHES, settings_diff, stored_config
 
 if TYPE_CHECKING:
-    from pilworld.paired.runner import PairedConfig
+    from pilworld.paired.config import PairedConfig
 
 # Settings that decide the real branch; the world model, its adapter and sampling steps do not. (The task
 # files must match too: compared by their hashes, task by task.)
@@ -31,8 +32,6 @@ class RealBranchSource:
     """The real episodes of a finished (or partly finished) paired run, by pair id."""
 
     def __init__(self, root: str | Path, cfg: PairedConfig) -> None:
-        from pilworld.paired.runner import CONFIG_FILE, TASK_HASHES, settings_diff, stored_config
-
         self.root = Path(root)
         path = self.root / CONFIG_FILE
         if not path.is_file():

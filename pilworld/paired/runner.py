@@ -24,7 +24,7 @@ import json
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -33,13 +33,23 @@ from tqdm import tqdm
 
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
-from pilworld.data.atomic import write_json
 from pilworld.data.backup import back_up
 from pilworld.data.outcomes import record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
 from pilworld.envs import RobotEnv
 from pilworld.imagine.branch import branch_episode, run_imagined
+from pilworld.io.atomic import write_json
+from pilworld.paired.config import (
+    CONFIG_FILE,
+    TASK_HASHES,
+    TIMINGS_FILE,
+    UNCOMPARED,
+    PairedConfig,
+    check_checkpoints,
+    settings_diff,
+    stored_config,
+)
 from pilworld.paired.operator import Operator
 from pilworld.paired.policy_metadata import honour_reset_poses, store_metadata
 from pilworld.paired.real_source import RealBranchSource
@@ -54,10 +64,34 @@ from pilworld.types import ChunkSpec, Start, Subtask
 from pilworld.world_model.base import HistoryAblation, RigBound, WorldModel
 from simrig.tasks import Task
 
+# The runner's API, with the settings it re-exports from pilworld.paired.config.
+__all__ = [
+    "CONFIG_FILE",
+    "JUDGE_ID",
+    "ORIGINS",
+    "RESUME_HINT",
+    "TASK_HASHES",
+    "TIMINGS_FILE",
+    "PairedConfig",
+    "PairedSubtask",
+    "branch_record",
+    "check_checkpoints",
+    "check_station_tasks",
+    "connect_policies",
+    "connect_policy",
+    "is_server",
+    "load_model",
+    "paired_run",
+    "plan_subtasks",
+    "rollout_length",
+    "settings_diff",
+    "stored_branches",
+    "stored_config",
+    "stored_slots",
+]
+
 ORIGINS = ("imagined", "real")
 JUDGE_ID = "sim_checker"
-CONFIG_FILE = "paired_config.json"
-TIMINGS_FILE = "paired_timings.jsonl"
 
 
 @dataclass(frozen=True)
@@ -76,73 +110,6 @@ class PairedSubtask:
     def seed(self) -> int:
         """The policy and world-model seed of this pair (the same in both branches)."""
         return self.subtask.seed * 100 + self.subtask.index
-
-
-def check_checkpoints(checkpoints: Sequence[str]) -> None:
-    """One or more checkpoint names, none blank, none twice (paired and imagined-only runs alike)."""
-    if not checkpoints or any(not c.strip() for c in checkpoints):
-        raise ValueError(f"checkpoints: expected one or more names, got {checkpoints!r}")
-    if len(set(checkpoints)) != len(checkpoints):
-        raise ValueError(f"checkpoints: listed twice: {checkpoints!r}")
-
-
-@dataclass
-class PairedConfig:
-    """Everything that decides a paired run's results (stored in ``paired_config.json``)."""
-
-    rig: str
-    # One task, several comma-separated ("sort_cubes,stack_bowls") or "all" (the paper's three); each a
-    # packaged task's name or a task file's path (pilworld.collection.tasks).
-    task: str
-    checkpoints: list[str]
-    subtasks: int
-    out: str
-    seed: int = 0
-    world_model: str = ""  # a model folder; "" = the packaged checkpoint
-    adapter: str = "auto"  # "auto": the task's LoRA adapter when the model has one; "none"; or a name
-    steps: int | None = None  # sampling steps; None = the model's default
-    video_mode: str = "lossless"  # bit-exact frames, so the two stored start frames compare byte for byte
-    spec: ChunkSpec = field(default_factory=ChunkSpec)
-    # A paired run with the same rig, seed and spec whose real branches are copied instead of re-run
-    # (pilworld.paired.real_source); "" = run them. Not compared on resume: a copy equals a re-run.
-    real_from: str = ""
-    history: bool = True  # False: the no-history ablation at inference (the model's latent memory hidden)
-    resize: bool = False  # True: a model of another image size runs through ResizedWorldModel
-    instruction: str = ""  # the instruction given to the policy and recorded; "" = each task file's own
-    appearance: str = "flat"  # the simulated scene's look (SimRobot appearance); a hardware rig is what it is
-
-    def __post_init__(self) -> None:
-        from pilworld.collection.tasks import APPEARANCES, check_instruction
-
-        if isinstance(self.subtasks, bool) or not isinstance(self.subtasks, int) or self.subtasks < 1:
-            raise ValueError(f"subtasks: expected an integer >= 1, got {self.subtasks!r}")
-        check_checkpoints(self.checkpoints)
-        if self.steps is not None and self.steps < 1:
-            raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
-        check_instruction(self.instruction, "instruction")
-        if self.appearance not in APPEARANCES:
-            raise ValueError(f"appearance: expected one of {', '.join(APPEARANCES)}, got {self.appearance!r}")
-
-    @property
-    def task_files(self) -> list[Task]:
-        """The run's tasks, loaded and validated (a one-line ``ValueError`` naming the file otherwise)."""
-        from pilworld.collection.tasks import resolve_tasks
-
-        return resolve_tasks(self.task, what="task")
-
-    @property
-    def tasks(self) -> list[str]:
-        """The names of the run's tasks (they key its pairs)."""
-        return [t.name for t in self.task_files]
-
-    def instruction_for(self, task: Task) -> str:
-        """The instruction the policy gets (and the episodes record) for ``task``."""
-        return self.instruction or task.instruction
-
-    def to_json(self) -> dict[str, Any]:
-        d = asdict(self)
-        d.pop("out")
-        return d
 
 
 def plan_subtasks(
@@ -209,41 +176,6 @@ def _set_up_start(
     return None
 
 
-# Settings that may differ on resume: more subtasks extend a run; a copied real branch equals a re-run one.
-_UNCOMPARED = ("subtasks", "real_from")
-TASK_HASHES = "task_sha256"  # paired_config.json: task name → Task.digest of the file the run used
-
-
-def _config_defaults() -> dict[str, Any]:
-    from dataclasses import MISSING, fields
-
-    return {f.name: f.default for f in fields(PairedConfig) if f.default is not MISSING}
-
-
-def same_rig(a: Any, b: Any) -> bool:
-    """Two rig settings name the same file (a relative and an absolute path to it are the same rig)."""
-    if a == b:
-        return True
-    if not isinstance(a, str) or not isinstance(b, str):
-        return False
-    return Path(a).resolve() == Path(b).resolve()
-
-
-def stored_config(path: Path) -> dict[str, Any]:
-    """A run's stored ``paired_config.json``; a key an older run's file lacks had its present default then
-    (new settings default to the old behaviour)."""
-    from pilworld.io.run_folder import read_json_object
-
-    return {**_config_defaults(), **read_json_object(path)}
-
-
-def settings_diff(have: dict[str, Any], want: dict[str, Any], keys: Iterable[str]) -> list[str]:
-    """The ``keys`` whose settings differ between two configs (JSON form); rigs compare by the file."""
-    return sorted(
-        k for k in keys if have.get(k) != want.get(k) and not (k == "rig" and same_rig(have.get(k), want.get(k)))
-    )
-
-
 def _check_config(root: Path, cfg: PairedConfig, tasks: Sequence[Task], *, write: bool = True) -> None:
     """Refuse a folder holding a run with other settings; with ``write``, claim the folder for ``cfg``.
 
@@ -254,7 +186,7 @@ def _check_config(root: Path, cfg: PairedConfig, tasks: Sequence[Task], *, write
     want[TASK_HASHES] = {t.name: t.digest for t in tasks}
     if path.is_file():
         have = stored_config(path)
-        keys = (set(have) | set(want)) - set(_UNCOMPARED)
+        keys = (set(have) | set(want)) - set(UNCOMPARED)
         if TASK_HASHES not in have:  # a run from before task files: its tasks were the packaged ones
             keys.discard(TASK_HASHES)
         diff = settings_diff(have, want, keys)

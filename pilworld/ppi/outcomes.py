@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pilworld.data.outcomes import Outcome, read_outcomes
+from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
-from pilworld.metrics.pairs import load_pairs
 
 DEFAULT_PROXY = "vision"
 GOLD_ORDER = ("sim_checker", "operator")  # then people's labels (kind human), then the proxy judge on real frames
@@ -74,7 +74,7 @@ def attached_runs(root: Path) -> list[str]:
 
 def attach_runs(root: Path, runs: list[str]) -> list[str]:
     """Remember ``runs`` (besides those attached before) so later metrics include them; returns them all."""
-    from pilworld.data.atomic import write_json
+    from pilworld.io.atomic import write_json
 
     for r in runs:
         if not (Path(r) / "imagine_config.json").is_file():

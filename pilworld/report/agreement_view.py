@@ -1,4 +1,4 @@
-"""The report's "Human judges" section: metrics.json ``human_agreement`` (pilworld.annotate.agreement) as tables.
+"""The report's "Human judges" section: metrics.json ``human_agreement`` (pilworld.metrics.agreement) as tables.
 
 Shown only when the run has human verdicts; every missing or undefined value is "—" with the reason
 from metrics.json as a tooltip, as in the metrics table.

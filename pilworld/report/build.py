@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 
 import pilworld
 from pilworld.control_video.gamma import ControlVideo
-from pilworld.data.atomic import atomic_write
 from pilworld.data.episode import Episode
+from pilworld.io.atomic import atomic_write
 from pilworld.report import charts
 from pilworld.report.media import (
     CONTROL_ROW,

@@ -26,12 +26,12 @@ from typing import Any
 
 import numpy as np
 
-from pilworld.data.atomic import write_json
 from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.spec import DatasetSpec
 from pilworld.data.writer import EpisodeWriter
+from pilworld.io.atomic import write_json
 from pilworld.types import ChunkSpec, Observation, RobotSpec, Start, Subtask
 
 META_FILE = "starts.json"

@@ -15,7 +15,7 @@ import torch
 from safetensors.torch import load_file, save_file
 from torch import nn
 
-from pilworld.data.atomic import atomic_write, write_json
+from pilworld.io.atomic import atomic_write, write_json
 from pilworld.io.run_folder import read_json_object
 
 CONFIG_FILE = "config.json"

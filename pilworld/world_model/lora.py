@@ -47,7 +47,7 @@ def adapter_state(model: PilWorldModel) -> dict[str, torch.Tensor]:
 
 
 def save_adapter(model: PilWorldModel, folder: Path, rank: int, alpha: float | None = None) -> None:
-    from pilworld.data.atomic import write_json
+    from pilworld.io.atomic import write_json
 
     folder.mkdir(parents=True, exist_ok=True)
     save_tensors(folder / "adapter.safetensors", {k: v.half() for k, v in adapter_state(model).items()})

@@ -297,7 +297,7 @@ class WanWorldModel:
     def save_pretrained(self, folder: Path) -> None:
         """Write a folder :meth:`from_pretrained` reads back (transformer, vae, scheduler, instruction encoder,
         and ``config.json``: the views, image size, K, H_h and default steps)."""
-        from pilworld.data.atomic import write_json
+        from pilworld.io.atomic import write_json
 
         folder = Path(folder)
         info = self._info

@@ -22,9 +22,9 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from pilworld.config.rig import RigConfig
-from pilworld.data.atomic import atomic_write
 from pilworld.data.clip_dataset import ClipDataset, save_npy
 from pilworld.data.clips import ClipSpec, mix_weights
+from pilworld.io.atomic import atomic_write
 from pilworld.world_model.base import WorldModelBatch
 from pilworld.world_model.batching import collate_clips, control_renderer, resize_images
 from pilworld.world_model.model import PilWorldModel

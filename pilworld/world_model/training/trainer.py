@@ -29,7 +29,7 @@ from torch import nn
 from tqdm import tqdm
 
 from pilworld.config.rig import RigConfig
-from pilworld.data.atomic import write_json
+from pilworld.io.atomic import write_json
 from pilworld.world_model.checkpoint import load_model, save_model
 from pilworld.world_model.config import ConditioningConfig, preset
 from pilworld.world_model.model import PilWorldModel

@@ -12,8 +12,8 @@ from pilworld.annotate.export import export_labels
 from pilworld.annotate.server import AnnotationServer
 from pilworld.annotate.store import DB_FILE, AnnotationStore, Label, StoreError
 from pilworld.data.outcomes import read_outcomes
+from pilworld.data.pairs import load_pairs
 from pilworld.judges.hallucination_checks import CATEGORIES
-from pilworld.metrics.pairs import load_pairs
 from tests.pilworld.annotate.client import Client
 
 FAST = {"single_step": False, "bootstrap": 0}

@@ -48,10 +48,10 @@ from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.control_video.probes import mismatched_robot, perturbed_cameras, perturbed_rig, shifted_principal_point
 from pilworld.data.outcomes import Outcome, read_outcomes, record_outcomes
+from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
 from pilworld.judges.base import judge_dataset
 from pilworld.judges.vision import VisionJudge
-from pilworld.metrics.pairs import load_pairs
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.types import ChunkSpec, Start, Subtask
 from tests.pilworld.metrics.synthetic import ROUNDS, K, SynthPair, write_paired

@@ -13,7 +13,7 @@ import pytest
 
 from pilworld.cli.main import main
 from pilworld.control_video.examples import HOME_Q14, reach_and_grasp_chunk
-from pilworld.io.video import read_video
+from pilworld.data.video_codec import decode_video as read_video
 
 ROOT = Path(__file__).resolve().parents[3]
 SIM = ROOT / "configs" / "rig" / "sim_dual_ur5e.yaml"

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from pilworld.data.outcomes import Outcome
+from pilworld.data.pairs import Pair, PairedEpisodes
 from pilworld.metrics.bootstrap import bootstrap_means, percentile_interval
-from pilworld.metrics.pairs import Pair, PairedEpisodes
 from pilworld.metrics.success import group_metrics, score_pairs
 
 

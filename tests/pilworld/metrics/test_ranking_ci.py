@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from pilworld.data.outcomes import Outcome, record_outcomes
+from pilworld.data.pairs import Pair
 from pilworld.metrics import compute_run_metrics
-from pilworld.metrics.pairs import Pair
 from pilworld.metrics.ranking import mmrv, pearson, spearman
 from pilworld.metrics.ranking_ci import ranking_intervals
 from pilworld.metrics.success import PairScore

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
-from pilworld.metrics.pairs import load_pairs
 from pilworld.metrics.single_step import single_step_metrics
 from pilworld.world_model.metrics import PSNR_CAP_DB
 from tests.pilworld.metrics.synthetic import VIEWS, K, SynthPair, write_paired

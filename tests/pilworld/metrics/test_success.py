@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from pilworld.data.outcomes import Outcome
-from pilworld.metrics.pairs import Pair, PairedEpisodes
+from pilworld.data.pairs import Pair, PairedEpisodes
 from pilworld.metrics.success import NO_COMMON_JUDGE, group_metrics, judge_summary, score_pairs
 
 T = 10  # frames per episode

@@ -15,8 +15,8 @@ import pytest
 from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import Outcome, read_outcomes, record_outcomes
+from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
-from pilworld.metrics.pairs import load_pairs
 from pilworld.paired import PairedConfig, paired_run
 from pilworld.paired.runner import CONFIG_FILE, TIMINGS_FILE, load_model
 from pilworld.types import ChunkSpec

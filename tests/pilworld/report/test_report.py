@@ -16,7 +16,7 @@ from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.data.episode import Episode
 from pilworld.data.reader import DatasetError, EpisodeStore
-from pilworld.io.video import read_video
+from pilworld.data.video_codec import decode_video as read_video
 from pilworld.metrics import write_metrics
 from pilworld.report import build_report
 from pilworld.report.media import GAP, control_frames

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from pilworld.annotate.agreement import NO_SHARED, ONE_CATEGORY, cohen_kappa, fleiss_kappa, human_agreement, mad
 from pilworld.data.outcomes import Outcome
-from pilworld.metrics.pairs import Pair, PairedEpisodes
+from pilworld.data.pairs import Pair, PairedEpisodes
+from pilworld.metrics.agreement import NO_SHARED, ONE_CATEGORY, cohen_kappa, fleiss_kappa, human_agreement, mad
 
 # Wikipedia, "Fleiss' kappa", worked example: 10 subjects, 14 raters, 5 categories.
 WIKIPEDIA = [

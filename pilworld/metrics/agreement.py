@@ -31,8 +31,8 @@ from typing import Any
 import numpy as np
 
 from pilworld.data.outcomes import Outcome
+from pilworld.data.pairs import PairedEpisodes
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED
-from pilworld.metrics.pairs import PairedEpisodes
 from pilworld.metrics.success import CHECKER_KIND, group_metrics, score_pairs
 
 HUMAN_ID = re.compile(r"human_\d+")
