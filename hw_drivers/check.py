@@ -11,11 +11,14 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pilworld.config.rig import RigConfig
+
+if TYPE_CHECKING:  # the fakes sit above the drivers; a caller that starts them passes their endpoints
+    from hw_drivers.fakes.rig import FakeEndpoints
 
 
 @dataclass(frozen=True)
@@ -67,8 +70,9 @@ def _camera_reading(camera: Any) -> str:
     return f"{w}x{h} frame, {1000 * (time.monotonic() - frame.timestamp):.0f} ms old"
 
 
-def check_robot(rig_path: str | Path) -> list[DeviceHealth]:
-    """One :class:`DeviceHealth` per arm, gripper and camera of the rig file."""
+def check_robot(rig_path: str | Path, endpoints: FakeEndpoints | None = None) -> list[DeviceHealth]:
+    """One :class:`DeviceHealth` per arm, gripper and camera of the rig file. ``endpoints``: where the
+    protocol fakes of a fake rig listen (the caller starts them; ``auto`` ports and sources resolve there)."""
     from hw_drivers.factory import build_arms, build_cameras, build_grippers, camera_source, gripper_port
 
     rig = RigConfig.load(rig_path)
@@ -77,30 +81,19 @@ def check_robot(rig_path: str | Path) -> list[DeviceHealth]:
             f"{rig_path}: rig {rig.name!r} has no 'hardware:' section (a simulated rig has no devices to check)"
         )
     hw = rig.hardware
-    fake = None
-    endpoints = None
-    if hw.fake is not None:
-        from hw_drivers.fakes.rig import FakeRig
-
-        fake = FakeRig(rig_path)
-        endpoints = fake.start()
-    try:
-        report: list[DeviceHealth] = []
-        arms = build_arms(rig, endpoints)
-        for side, arm in arms.items():
-            report.append(_probe(f"{side} arm", "ur_rtde", getattr(arm, "host", ""), arm, _arm_reading))
-        grippers = build_grippers(rig, endpoints)
-        for side, gripper in grippers.items():
-            cfg = getattr(hw.grippers, side)
-            port = gripper_port(rig, side, endpoints)
-            report.append(_probe(f"{side} gripper", cfg.driver, port, gripper, _gripper_reading))
-        for name, camera in build_cameras(rig, endpoints).items():
-            source = str(camera_source(rig, name, endpoints))
-            report.append(_probe(name, "opencv", source, camera, _camera_reading))
-        return report
-    finally:
-        if fake is not None:
-            fake.stop()
+    report: list[DeviceHealth] = []
+    arms = build_arms(rig, endpoints)
+    for side, arm in arms.items():
+        report.append(_probe(f"{side} arm", "ur_rtde", getattr(arm, "host", ""), arm, _arm_reading))
+    grippers = build_grippers(rig, endpoints)
+    for side, gripper in grippers.items():
+        cfg = getattr(hw.grippers, side)
+        port = gripper_port(rig, side, endpoints)
+        report.append(_probe(f"{side} gripper", cfg.driver, port, gripper, _gripper_reading))
+    for name, camera in build_cameras(rig, endpoints).items():
+        source = str(camera_source(rig, name, endpoints))
+        report.append(_probe(name, "opencv", source, camera, _camera_reading))
+    return report
 
 
 def format_table(report: list[DeviceHealth]) -> str:

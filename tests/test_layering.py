@@ -3,6 +3,11 @@
     foundation (pilworld.types, .geometry, .kinematics) ← calib ← pilworld.config ← hw_drivers (contract, drivers)
         ← simrig (the simulated rig) ← hw_drivers.fakes (protocol fakes backed by it) ← rest of pilworld
 
+Above them, :data:`ORDER` ranks every package of the tree, top (the command line) to bottom; a module may
+import its own package and any package ranked below it, never one above. No two packages import each
+other and no two modules do (every import counts, deferred ones too; only ``if TYPE_CHECKING:`` blocks,
+which never run, are left out).
+
 The foundation is the data contract and the geometry every layer shares; it lives in ``pilworld``
 (as the issues ask) but imports nothing from the layers above it, so ``calib`` and ``hw_drivers``
 can use it without depending on the evaluation code.
@@ -128,3 +133,140 @@ def test_legacy_task_readers_exist() -> None:
     """An exception that no longer names a module must go (so the list only shrinks)."""
     modules = {_module_name(p) for p in _sources()}
     assert set(LEGACY_TASK_READERS) <= modules
+
+
+# --- The whole tree, top to bottom (a package imports only itself and packages below it).
+ORDER: tuple[str, ...] = (
+    "pilworld.__main__",
+    "pilworld.cli",
+    "pilworld.bench",
+    "pilworld.annotate",
+    "pilworld.demo",
+    "pilworld.imagine",
+    "pilworld.paired",
+    "pilworld.report",
+    "pilworld.metrics",
+    "pilworld.ppi",
+    "pilworld.rollout",
+    "pilworld.envs",
+    "pilworld.world_model",
+    "pilworld.judges",
+    "pilworld.collection",
+    "pilworld.starts",
+    "pilworld.policies",
+    "pilworld.calibration",
+    "pilworld.control_video",
+    "hw_drivers.fakes",
+    "simrig",
+    "hw_drivers",
+    "pilworld.data",
+    "pilworld.io",
+    "pilworld.perception",
+    "pilworld.config",
+    "calib",
+    "pilworld.kinematics",
+    "pilworld.geometry",
+    "pilworld.types",
+    "pilworld",  # the top package's own __init__ (its version)
+)
+MODULES = {_module_name(p): p for p in _sources()}
+
+
+def package_of(module: str) -> str:
+    """The entry of :data:`ORDER` a module belongs to: the longest that is it or contains it."""
+    owners = [p for p in ORDER if _within(module, (p,))]
+    assert owners, f"{module} belongs to no package of ORDER: add its package there"
+    return max(owners, key=len)
+
+
+def _runtime_imports(path: Path) -> set[str]:
+    """The project modules ``path`` imports when it runs (``from pkg import sub`` names ``pkg.sub``)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    skipped: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skipped.update(id(n) for n in ast.walk(node))
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            for alias in node.names:
+                sub = f"{node.module}.{alias.name}"
+                found.add(sub if sub in MODULES else node.module)
+    out = set()
+    for name in found:
+        while name and name not in MODULES:  # an attribute of a module: the module
+            name = name.rpartition(".")[0]
+        if name:
+            out.add(name)
+    return out - {_module_name(path)}
+
+
+IMPORTS = {m: _runtime_imports(p) for m, p in MODULES.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one node (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_every_package_is_ranked() -> None:
+    for module in MODULES:
+        package_of(module)
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_point_down_the_order(module: str) -> None:
+    own = ORDER.index(package_of(module))
+    up = sorted(n for n in IMPORTS[module] if ORDER.index(package_of(n)) < own)
+    assert not up, f"{module} ({package_of(module)}) imports {up}, ranked above it in ORDER"
+
+
+def test_no_package_imports_another_that_imports_it() -> None:
+    graph: dict[str, set[str]] = {}
+    for module, names in IMPORTS.items():
+        graph.setdefault(package_of(module), set()).update(package_of(n) for n in names)
+    for package, names in graph.items():
+        names.discard(package)
+    assert _cycles(graph) == []
+
+
+def test_no_module_imports_another_that_imports_it() -> None:
+    assert _cycles(IMPORTS) == []
+
+
+def test_the_cycle_finder_finds_a_cycle() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]

@@ -114,7 +114,7 @@ def time_rounds(
 def run_chunk_latency(
     models: dict[str, str], *, rig: str | Path, task: str = "sort_cubes", repeats: int = 20, warmup: int = 2
 ) -> dict[str, Any]:
-    from pilworld.world_model.checkpoint import adapter_names, load_world_model
+    from pilworld.world_model.loader import adapter_names, load_world_model
 
     if repeats < 1:
         raise ValueError(f"--repeats: expected at least 1, got {repeats}")

@@ -64,7 +64,7 @@ class WorldModelTimer:
         import torch
 
         from pilworld.world_model.base import PredictRequest
-        from pilworld.world_model.checkpoint import load_world_model
+        from pilworld.world_model.loader import load_world_model
 
         self.torch = torch
         self.model_dir = model_dir

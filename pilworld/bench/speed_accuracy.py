@@ -212,8 +212,8 @@ def _load(m: TrainedModel, rig: Any) -> Any:
     to its geometry (never resized: v2 composites at the rig's size)."""
     import torch
 
-    from pilworld.world_model.checkpoint import load_world_model
     from pilworld.world_model.config import preset
+    from pilworld.world_model.loader import load_world_model
     from pilworld.world_model.model import PilWorldModel
     from pilworld.world_model.resized import ResizedWorldModel
 

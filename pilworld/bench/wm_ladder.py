@@ -150,7 +150,7 @@ class LadderConfig:
 
 def check_model_folder(path: Path) -> None:
     """A one-line ``ValueError`` unless ``path`` is a world-model folder load_world_model can read."""
-    from pilworld.world_model.checkpoint import CONFIG_FILE
+    from pilworld.world_model.folder import CONFIG_FILE
 
     if not path.is_dir():
         raise ValueError(f"model: {path} is not a folder (expected a world-model folder with {CONFIG_FILE})")
@@ -261,7 +261,7 @@ def autoencoder_for(model: WorldModel) -> FrameAutoencoder | str:
 
 def load_ladder_model(path: Path, rig: RigConfig, spec: ChunkSpec, task: str) -> tuple[WorldModel, str | None, bool]:
     """(model, adapter, resized): the folder's model with ``task``'s adapter when it has one, at the rig's size."""
-    from pilworld.world_model.checkpoint import adapter_names, load_world_model
+    from pilworld.world_model.loader import adapter_names, load_world_model
     from pilworld.world_model.resized import ResizedWorldModel
 
     check_model_folder(path)

@@ -617,7 +617,7 @@ def _world_model(args: argparse.Namespace) -> int:
     # Imported here: the checkpoint loader pulls in torch and the model code, which other commands do not need.
     import pilworld.world_model as world_model
     from pilworld.bench.world_model import HELDOUT_SEED0, heldout_dataset, run_world_model_bench
-    from pilworld.world_model.checkpoint import load_world_model
+    from pilworld.world_model.loader import load_world_model
     from simrig.tasks import TASK_NAMES
 
     # v1 by default: the bench's presets, steps and open-loop figures (docs/world_model.md) are v1's.

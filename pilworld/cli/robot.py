@@ -26,8 +26,15 @@ def register(sub: Any) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     from hw_drivers.check import check_robot, format_table, report_json
+    from hw_drivers.fakes.rig import FakeRig
+    from pilworld.config.rig import RigConfig
 
-    report = check_robot(args.rig)
+    hardware = RigConfig.load(args.rig).hardware
+    if hardware is not None and hardware.fake is not None:  # the protocol fakes first, then the same checks
+        with FakeRig(args.rig) as fake:
+            report = check_robot(args.rig, fake.endpoints)
+    else:
+        report = check_robot(args.rig)
     print(format_table(report))
     if args.json:
         print(json.dumps(report_json(report)))

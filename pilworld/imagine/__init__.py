@@ -1,4 +1,6 @@
 """Imagined-only runs from stored starts (``pilworld imagine``): :mod:`pilworld.imagine.runner`.
 
-Kept import-free: the paired runner imports :mod:`pilworld.imagine.branch`, and the runner imports it.
+It sits above :mod:`pilworld.paired`: the imagined branch itself (:mod:`pilworld.paired.imagined_branch`)
+and the run settings and model loading are the paired run's, so that the same start, checkpoint, seed and
+model give the same episode in both.
 """

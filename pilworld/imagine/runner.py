@@ -2,7 +2,7 @@
 
 For each stored start (a scene: task, subtask, layout seed) × checkpoint, the policy runs in closed
 loop against the world model exactly as in a paired run's imagined branch
-(:func:`pilworld.imagine.branch.run_imagined`): the same start, checkpoint and seed give the same
+(:func:`pilworld.paired.imagined_branch.run_imagined`): the same start, checkpoint and seed give the same
 episode, bit for bit. Episodes are stored like a paired run's (origin imagined, ``extra.pair`` the pair
 id a paired run would give) and judged by the same judges, so their verdicts are the "imagined-only"
 predictions prediction-powered inference (:mod:`pilworld.ppi`) combines with a paired run's.
@@ -281,7 +281,7 @@ def run_job(job: ImagineJob, cfg_json: dict[str, Any], robot: dict[str, Any]) ->
     """One imagined branch, in whichever process runs it (inline, a worker process, a Ray worker)."""
     from pilworld.collection.tasks import task_extra, task_for_name
     from pilworld.data.reader import EpisodeStore
-    from pilworld.imagine.branch import branch_episode, run_imagined
+    from pilworld.paired.imagined_branch import branch_episode, run_imagined
     from pilworld.paired.runner import is_server, load_model
     from pilworld.policies.registry import make_policy
     from pilworld.starts.store import start_from_episode

@@ -38,7 +38,6 @@ from pilworld.data.outcomes import record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.data.writer import EpisodeWriter
 from pilworld.envs import RobotEnv
-from pilworld.imagine.branch import branch_episode, run_imagined
 from pilworld.io.atomic import write_json
 from pilworld.paired.config import (
     CONFIG_FILE,
@@ -50,6 +49,7 @@ from pilworld.paired.config import (
     settings_diff,
     stored_config,
 )
+from pilworld.paired.imagined_branch import branch_episode, run_imagined
 from pilworld.paired.operator import Operator
 from pilworld.paired.policy_metadata import honour_reset_poses, store_metadata
 from pilworld.paired.real_source import RealBranchSource

@@ -13,10 +13,8 @@ from pathlib import Path
 
 import torch
 
-from pilworld.world_model.base import WorldModel
 from pilworld.world_model.config import WorldModelConfig
-from pilworld.world_model.folder import CONFIG_FILE as CONFIG_FILE  # transition re-export
-from pilworld.world_model.folder import WEIGHTS_FILE, load_weights, read_folder_config, save_folder
+from pilworld.world_model.folder import CONFIG_FILE, WEIGHTS_FILE, load_weights, read_folder_config, save_folder
 from pilworld.world_model.lora import apply_adapter
 from pilworld.world_model.model import PilWorldModel
 
@@ -91,11 +89,3 @@ def export_model(
         for folder in found:
             shutil.copytree(folder, dest / ADAPTERS_DIR / folder.name, dirs_exist_ok=True)
     return dest
-
-
-def load_world_model(
-    path: str | Path, *, adapter: str | None = None, device: str | torch.device = "cpu"
-) -> WorldModel:  # pragma: no cover - a transition alias while callers move to the loader
-    from pilworld.world_model.loader import load_world_model as load
-
-    return load(path, adapter=adapter, device=device)
