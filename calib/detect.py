@@ -1,7 +1,7 @@
 """ChArUco corner detection that survives the OpenCV 4.6 legacy-pattern change.
 
 OpenCV 4.6 changed where the markers of a ChArUco board with an even number of rows go
-(``CharucoBoard.setLegacyPattern``, opencv issue 23152). A detector configured with the other layout
+(``CharucoBoard.setLegacyPattern``, a known OpenCV upstream bug). A detector configured with the other layout
 still finds every marker but interpolates **zero** corners, which looks like "the board is not visible".
 :class:`BoardDetector` notices exactly that situation (markers found, no corners), retries with the
 other layout, and if that works warns once with :class:`LegacyPatternMismatchWarning` (naming the config

@@ -9,7 +9,7 @@ other and no two modules do (every import counts, deferred ones too; only ``if T
 which never run, are left out).
 
 The foundation is the data contract and the geometry every layer shares; it lives in ``pilworld``
-(as the issues ask) but imports nothing from the layers above it, so ``calib`` and ``hw_drivers``
+(as the design asks) but imports nothing from the layers above it, so ``calib`` and ``hw_drivers``
 can use it without depending on the evaluation code.
 """
 

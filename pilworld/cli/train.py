@@ -97,7 +97,7 @@ def register(sub: Any) -> None:
     comp.add_argument(
         "--cache-only", action="store_true", help="build the sample cache (with the variants' inputs) and exit"
     )
-    var = comp.add_argument_group("variants of the recipe (issue #24; docs/world_model.md, 'Variants')")
+    var = comp.add_argument_group("variants of the recipe (docs/world_model.md, 'Variants')")
     var.add_argument(
         "--control",
         default="render+prior",

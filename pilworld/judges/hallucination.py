@@ -1,4 +1,4 @@
-"""The automatic hallucination detector (issue #7): the first frame of an obvious hallucination, and why.
+"""The automatic hallucination detector (docs/judges.md): the first frame of an obvious hallucination, and why.
 
 The paper's annotators mark the first frame of "object disappearance or sudden appearance, cross-view
 spatial conflict, discontinuous arm or object motion" (appendix, "Hallucination-free ratio"). This

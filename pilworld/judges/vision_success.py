@@ -1,4 +1,4 @@
-"""The image-only success judge (issue #7): did the episode achieve its subtask, from the frames alone.
+"""The image-only success judge (docs/judges.md): did the episode achieve its subtask, from the frames alone.
 
 The paper needed people to judge success on both branches; this judge automates it for the simulated
 rig's three tasks and is validated against the simulator's privileged checker on the real branch

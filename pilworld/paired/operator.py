@@ -2,7 +2,7 @@
 
 :class:`ConsoleOperator` asks on the terminal; tests pass scripted answers through ``ask``. The verdict
 is stored as a ``human`` judge (``judge_id`` "operator"); "skip" leaves the episode to the annotation
-app (issue #10) and records nothing.
+app (docs/annotate.md) and records nothing.
 
 Without a terminal (a script, CI, ``</dev/null``) nobody can answer: :meth:`ConsoleOperator.check_available`
 raises :class:`OperatorUnavailableError` before the rig moves, and an answer that never comes (stdin

@@ -60,7 +60,7 @@ class TaskFileError(ConfigError):
 
 
 def packaged_tasks() -> tuple[str, ...]:
-    """Names of the task files shipped in ``configs/tasks/``."""
+    """Names of the packaged task files (``simrig/tasks/files/``; ``configs/tasks/`` links to it)."""
     return tuple(sorted(p.stem for p in TASKS_DIR.glob("*.yaml")))
 
 

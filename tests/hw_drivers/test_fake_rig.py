@@ -1,4 +1,4 @@
-"""Mocked hardware end to end: the real client libraries drive the fake rig (issue #8 acceptance).
+"""Mocked hardware end to end: the real client libraries drive the fake rig (docs/hardware.md).
 
 The real branch of a subtask runs through ``DualArmRobot`` — two ``URArm``s (ur_rtde) on the fake
 UR controllers, a Dynamixel gripper (dynamixel_sdk) and a Robotiq gripper (pyserial, Modbus RTU) on

@@ -1,4 +1,4 @@
-"""World model v2 (issue #21): a small network that composites what geometry already knows.
+"""World model v2 (docs/world_model.md, 'World model v2'): a small network that composites what geometry already knows.
 
 The robot is rendered from its own model (Γ⁺), the static scene is reprojected from the current frame,
 and whatever a gripper holds is carried along with it by a rigid warp (:mod:`.layers`). A small

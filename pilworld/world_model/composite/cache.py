@@ -246,7 +246,7 @@ def build_cache(spec: CacheSpec, out: str | Path, *, rig: Any = None, workers: i
 
 # ---------------------------------------------------------------------------------------------- variant extras
 
-EXTRAS = ("markers", "actions")  # what issue #24's variants add to the inputs (switches.py)
+EXTRAS = ("markers", "actions")  # what the recipe's equal-budget variants add to the inputs (switches.py)
 
 
 def _init_extras(spec: CacheSpec, rig: Any) -> None:

@@ -1,4 +1,5 @@
-"""What a world-model v2 variant keeps of the shipped recipe: the switches of issue #24's equal-budget table.
+"""What a world-model v2 variant keeps of the shipped recipe: the equal-budget table's switches
+(docs/RESULTS.md, section 1).
 
 Every variant is trained by the same command on the same sample cache (same clips, frames, steps, batch,
 seed, network size); only these switches differ. They act on the cached base channels (:mod:`.cache`), so

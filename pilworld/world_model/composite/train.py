@@ -56,7 +56,7 @@ class TrainSettings:
     max_clips: int = 3000
     frames_per_clip: int = 5
     context_noise: float = 0.04
-    switches: Switches = field(default_factory=Switches)  # a variant of the recipe (issue #24; default: shipped)
+    switches: Switches = field(default_factory=Switches)  # a recipe variant (docs/RESULTS.md §1); default: shipped
     success_only: bool = False  # train on clips of successful episodes only (a variant's data switch)
 
     # settings a resumed run may change (the schedule); any other difference is refused

@@ -1,4 +1,4 @@
-"""What the real ur_rtde ``rtde_control`` / ``rtde_receive`` client gets from FakeURController (issue #23 item 3).
+"""What the real ur_rtde ``rtde_control`` / ``rtde_receive`` client gets from FakeURController (docs/hardware_ur.md).
 
 One client subprocess (its constructors hold the GIL, so it never shares a process with the fake) runs a
 session of calls and reports the raw answers; the tests compare them with :mod:`pilworld.kinematics` here.

@@ -66,7 +66,7 @@ def test_the_equal_budget_v2_variants_are_selectable_and_name_their_training_com
 
 def test_select_variants_by_mode_and_by_name() -> None:
     assert [v.name for v in select_variants(True)] == ["pilworld", "v2_paper_gamma", "v2_ctrl_world"]
-    full = select_variants(False)  # issue #24: the shipped v2 and its eight equal-budget variants
+    full = select_variants(False)  # the shipped v2 and its eight equal-budget variants (docs/RESULTS.md, section 1)
     assert [v.name for v in full] == ["pilworld"] + [n for n, _, _ in V2_VARIANTS]
     assert all(v.world_model.endswith(f"weights/bench/{v.name}") for v in full[1:])
     assert [v.name for v in full if v.role == "baseline"] == ["v2_paper_gamma", "v2_ctrl_world"]

@@ -238,7 +238,8 @@ def test_run_sim_handeye_reports_the_benchmark_keys(rig: RigConfig) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("arm", ["left", "right", "both"])
 def test_acceptance_20_poses_at_1024(rig: RigConfig, arm: str) -> None:
-    """Issue #9 acceptance: ≥ 15 poses, ≥ 40° span: ≤ 2 mm, ≤ 0.2°, gripper points ≤ 1 px at 128×128."""
+    """Calibration acceptance (docs/calibration_bench.md):
+    ≥ 15 poses, ≥ 40° span: ≤ 2 mm, ≤ 0.2°, gripper points ≤ 1 px at 128×128."""
     result = run_sim_handeye(rig, arm, poses=20, seed=0, resolution=1024)
     print(arm, result)
     assert result["poses"] >= (40 if arm == "both" else 20) * 0.75

@@ -53,7 +53,8 @@ def test_live_needs_a_hardware_rig(tmp_path: Path, capsys: pytest.CaptureFixture
 
 @pytest.mark.slow
 def test_live_intrinsics_on_the_fake_rig(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Acceptance (issue #25): focal length within 1 %, principal point within 2 px of the simulated camera."""
+    """Acceptance (docs/calibration.md):
+    focal length within 1 %, principal point within 2 px of the simulated camera."""
     out = tmp_path / "camera.yaml"
     argv = ["calibrate", "intrinsics", "--live", "--rig", str(FAKE), "--out", str(out), "--json"]
     rc = main([*argv, "--preview", str(tmp_path / "preview.png")])

@@ -74,7 +74,8 @@ def test_no_motion_without_confirmation(
 
 @pytest.mark.slow
 def test_handeye_and_check_on_the_fake_rig(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Acceptance (issue #25): within 2 mm and 0.3° of the simulator's truth; the check within 1 px at 128²."""
+    """Acceptance (docs/calibration.md):
+    within 2 mm and 0.3° of the simulator's truth; the check within 1 px at 128²."""
     out = tmp_path / "head_camera.yaml"
     argv = ["calibrate", "handeye", "--rig", str(FAKE), "--arm", "both", "--out", str(out), "--yes", "--json"]
     assert main([*argv, "--poses", "10"]) == 0

@@ -1,5 +1,5 @@
 """The automatic hallucination detector: each injected fault is found at frame k ± 1 under its category,
-clean episodes are not flagged, and (slow) the issue #7 acceptance on freshly collected episodes."""
+clean episodes are not flagged, and (slow) the acceptance (docs/judges.md) on fresh episodes."""
 
 from __future__ import annotations
 
@@ -110,7 +110,7 @@ def test_bad_episodes_are_refused(episodes: list[Episode], rig: RigConfig) -> No
 @pytest.mark.slow
 @pytest.mark.timeout(3600)
 def test_acceptance_on_fresh_seeds(tmp_path: Path) -> None:
-    """Issue #7: frame k ± 1 found in ≥ 90 % of faulted real episodes, ≤ 10 % of clean ones flagged.
+    """Acceptance (docs/judges.md): frame k ± 1 found in ≥ 90 % of faulted real episodes, ≤ 10 % of clean ones flagged.
 
     Seeds 4,000,000+ are reserved for this measurement (never used to tune the detector):
     ``pilworld sim collect --task all --checkpoint all --episodes 2 --seed 4000000`` — 80 episodes.

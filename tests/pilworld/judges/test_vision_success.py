@@ -1,4 +1,4 @@
-"""The image-only success judge against the simulator's privileged checker (issue #7)."""
+"""The image-only success judge against the simulator's privileged checker (docs/judges.md)."""
 
 from __future__ import annotations
 
@@ -215,7 +215,8 @@ def test_bench_on_a_collected_store(tmp_path: Path, rig: RigConfig) -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(1800)  # 240 simulated subtasks and their judging: > 600 s (the suite's default) on this machine
 def test_acceptance_on_fresh_seeds(tmp_path: Path, rig: RigConfig) -> None:
-    """Issue #7: ≥ 95 % agreement with the checker on ≥ 100 real-branch subtasks of seeds reserved for judge
+    """Acceptance (docs/judges.md):
+    ≥ 95 % agreement with the checker on ≥ 100 real-branch subtasks of seeds reserved for judge
     validation — the two fresh sets of docs/judges.md (3,000,100+ and 3,000,200+, 240 subtasks) pooled;
     3,000,000–3,000,002 were looked at while the judge was developed and are not used."""
     from pilworld.bench.judges import run_judge_bench

@@ -1,6 +1,6 @@
 """The browser tests pass while every core is busy.
 
-Issue #23: the report's marker-seek test used Chromium's ``--virtual-time-budget`` and failed in a fresh
+Once, the report's marker-seek test used Chromium's ``--virtual-time-budget`` and failed in a fresh
 ``scripts/test`` while another process used both cores. This test reproduces that load — one CPU-bound
 process per core, each ending itself after a bound — and runs the report's and the annotation app's browser
 tests in a child pytest. CI must not depend on an idle machine.

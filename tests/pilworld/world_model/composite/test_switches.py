@@ -1,4 +1,5 @@
-"""Issue #24's variants of world model v2: what each switch changes, at training and at inference."""
+"""The equal-budget variants of world model v2 (docs/RESULTS.md §1): what each switch changes, in training
+and at inference."""
 
 from __future__ import annotations
 
@@ -193,6 +194,6 @@ def test_an_old_run_without_the_variant_settings_resumes_as_the_shipped_recipe(
     run = tmp_path / "old"
     assert train_composite(TrainSettings(**base), run, progress=False, rig=rig32, stop_after=2) is None  # type: ignore[arg-type]
     settings = json.loads((run / "settings.json").read_text())
-    del settings["switches"], settings["success_only"]  # as written before issue #24
+    del settings["switches"], settings["success_only"]  # as written before the variant switches existed
     (run / "settings.json").write_text(json.dumps(settings))
     assert train_composite(TrainSettings(**base), run, progress=False, rig=rig32) is not None  # type: ignore[arg-type]
