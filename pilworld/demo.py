@@ -91,12 +91,12 @@ def run_demo(
         spec=ChunkSpec(rounds=size.rounds),
         appearance=appearance,
     )
-    run = paired_run(cfg, progress=progress)
+    rig_cfg = RigConfig.load(rig)  # once: the paired run, the judges and the report share it
+    run = paired_run(cfg, progress=progress, rig=rig_cfg)
     stages["paired_runs_s"] = time.monotonic() - t0
 
     t = time.monotonic()
     judge = VisionJudge()
-    rig_cfg = RigConfig.load(rig)
     todo = unjudged_episodes(root, judge.judge_id)
     judge_dataset(root, [judge], rig_cfg, episodes=todo, progress=progress, workers=workers)
     stages["judging_s"] = time.monotonic() - t
@@ -106,7 +106,7 @@ def run_demo(
     stages["metrics_s"] = time.monotonic() - t
 
     t = time.monotonic()
-    report = build_report(root)
+    report = build_report(root, rig=rig_cfg)
     stages["report_s"] = time.monotonic() - t
     stages["total_s"] = time.monotonic() - t0
     return {

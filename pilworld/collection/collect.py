@@ -23,6 +23,7 @@ import numpy as np
 from tqdm import tqdm
 
 from pilworld.collection.workers import process_map, worker_count, worker_robot
+from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.reader import EpisodeStore
@@ -112,10 +113,9 @@ def _worker(args: tuple[str, RunJob, ChunkSpec]) -> list[PartResult]:
     return simulate_run(*args)
 
 
-def dataset_spec(rig_path: str, video_mode: str, spec: ChunkSpec) -> DatasetSpec:
-    from pilworld.config.rig import RigConfig
-
-    rig = RigConfig.load(rig_path)
+def dataset_spec(rig_path: str | RigConfig, video_mode: str, spec: ChunkSpec) -> DatasetSpec:
+    """The episode store's spec for ``rig_path`` (a rig file, or the rig already loaded) at ``spec``'s stride."""
+    rig = rig_path if isinstance(rig_path, RigConfig) else RigConfig.load(rig_path)
     fps = rig.control_rate_hz / spec.stride
     if abs(fps - round(fps)) > 1e-9:
         raise ValueError(f"control rate {rig.control_rate_hz} Hz / stride {spec.stride} is not an integer frame rate")

@@ -25,6 +25,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from pilworld.config.rig import RigConfig
 from pilworld.data.backup import back_up
 from pilworld.data.episode import Episode
 from pilworld.data.writer import EpisodeWriter
@@ -193,13 +194,12 @@ def check_start_tasks(cfg: ImagineConfig, source: StartsSource) -> None:
             )
 
 
-def robot_spec_for(cfg: ImagineConfig, source: StartsSource) -> RobotSpec:
-    """The limits the imagined branch's safety filter applies: the recording robot's, else the rig's."""
+def robot_spec_for(cfg: ImagineConfig, source: StartsSource, rig: RigConfig | None = None) -> RobotSpec:
+    """The limits the imagined branch's safety filter applies: the recording robot's, else the rig's
+    (``rig``: ``cfg.rig`` already loaded)."""
     if source.meta is not None:
         return robot_spec_from_json(source.meta["robot_spec"])
-    from pilworld.config.rig import RigConfig
-
-    rig = RigConfig.load(cfg.rig)
+    rig = rig if rig is not None else RigConfig.load(cfg.rig)
     if rig.hardware is not None:
         raise StartsError(
             f"--starts: {source.root} does not say which robot recorded it; on a hardware rig record starts "
@@ -207,7 +207,7 @@ def robot_spec_for(cfg: ImagineConfig, source: StartsSource) -> RobotSpec:
         )
     from simrig.robot import SimRobot
 
-    return SimRobot(cfg.rig, "sort_cubes").spec  # the simulated rig's limits (building it connects nothing)
+    return SimRobot(rig, "sort_cubes").spec  # the simulated rig's limits (building it connects nothing)
 
 
 def _check_config(root: Path, cfg: ImagineConfig, *, write: bool) -> None:
@@ -252,7 +252,6 @@ def _worker_state(cfg_json: dict[str, Any], robot: dict[str, Any]) -> dict[str, 
     """This process's world models (per task), policies, control-video renderer and open start stores."""
     key = json.dumps([cfg_json, robot], sort_keys=True)
     if _WORKER.get("key") != key:
-        from pilworld.config.rig import RigConfig
         from pilworld.control_video.gamma import ControlVideo
 
         cfg = config_from_json(cfg_json)
@@ -380,7 +379,6 @@ def imagine_run(
 ) -> dict[str, Any]:
     """Run (or resume) an imagined-only run; returns a summary. ``backend`` overrides ``workers``."""
     from pilworld.collection.collect import dataset_spec
-    from pilworld.config.rig import RigConfig
     from pilworld.io.run_folder import IMAGINED, check_out_folder
     from pilworld.paired.runner import load_model
 
@@ -398,7 +396,7 @@ def imagine_run(
     spec = cfg.resolved_spec
     check_paired_source(cfg, source)
     check_start_tasks(cfg, source)
-    robot = robot_spec_for(cfg, source)
+    robot = robot_spec_for(cfg, source, rig)
     for task in sorted({s.subtask.task for s in source.starts}):
         load_model(cfg.paired(task), rig, task)  # a model that does not fit the rig fails before anything is written
     from pilworld.collection.tasks import task_for_name
@@ -428,7 +426,7 @@ def imagine_run(
         total=len(jobs), initial=len(jobs) - len(todo), desc="imagined subtasks", unit="branch", disable=not progress
     )
     if todo:
-        with EpisodeWriter(root, dataset_spec(cfg.rig, cfg.video_mode, spec)) as writer:
+        with EpisodeWriter(root, dataset_spec(rig, cfg.video_mode, spec)) as writer:
             for result in run(todo, cfg_json, robot_json):
                 slot = redo.get((str(result.episode.extra["pair"]), "imagined"))
                 if slot is None:

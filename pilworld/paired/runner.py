@@ -332,8 +332,10 @@ def paired_run(
     progress: bool = True,
     on_branch: Callable[[PairedSubtask, str], None] | None = None,
     operator: Operator | None = None,
+    rig: RigConfig | None = None,
 ) -> dict[str, Any]:
-    """Run (or resume) a paired run; returns a summary. ``on_branch`` is called after each stored branch.
+    """Run (or resume) a paired run; returns a summary. ``on_branch`` is called after each stored branch;
+    ``rig``: ``cfg.rig`` already loaded (the demo loads it once for the whole run).
 
     On a rig with a ``hardware:`` section the real branch runs on the robot (or its protocol fakes)
     through :class:`~pilworld.paired.stations.HardwareStation`; ``operator`` answers its prompts
@@ -345,7 +347,7 @@ def paired_run(
 
     root = Path(cfg.out)
     check_out_folder(root, PAIRED)  # a folder another command made is refused before anything else
-    rig = RigConfig.load(cfg.rig)
+    rig = rig if rig is not None else RigConfig.load(cfg.rig)
     tasks = cfg.task_files  # loads and validates every task file
     check_station_tasks(rig, tasks, operator)
     if rig.hardware is not None and cfg.appearance != "flat":
@@ -353,7 +355,7 @@ def paired_run(
     by_name = {t.name: t for t in tasks}
     restore_run(root)  # a damaged table or setting of a stored run comes back from its backup first
     models = {t.name: load_model(cfg, rig, t.name) for t in tasks}  # fails before anything is written
-    store_spec = dataset_spec(cfg.rig, cfg.video_mode, cfg.spec)
+    store_spec = dataset_spec(rig, cfg.video_mode, cfg.spec)
     _check_config(root, cfg, tasks, write=False)
     plan: list[PairedSubtask] = []
     for t in tasks:
@@ -373,7 +375,7 @@ def paired_run(
             f"real_from: {cfg.real_from} lacks the real branch of {len(missing)} pair(s), e.g. {missing[0]}"
         )
     # A hardware station checks its operator here (none at a terminal: a typed error), before any motion.
-    station_ = open_station(cfg.rig, by_name, operator, appearance=cfg.appearance)
+    station_ = open_station(cfg.rig, by_name, operator, appearance=cfg.appearance, rig=rig)
     gamma = ControlVideo.from_rig(rig, cfg.spec)
     # A policy server is reached (and a scripted checkpoint built) before the folder is claimed.
     by_task = connect_policies(cfg.checkpoints, rig, cfg.spec, tasks)
@@ -391,7 +393,7 @@ def paired_run(
         EpisodeWriter(root, store_spec) as writer,
         StartsWriter(
             root / PAIRED_STARTS,
-            dataset_spec(cfg.rig, "lossless", cfg.spec),
+            dataset_spec(rig, "lossless", cfg.spec),
             station.robot.spec,
             cfg.spec,
             rig=cfg.rig,

@@ -93,7 +93,7 @@ class SimStation:
 
     def __init__(
         self,
-        rig_path: str | Path,
+        rig_path: str | Path | RigConfig,
         task: str | Task | Sequence[str | Task] | Mapping[str, Task],
         *,
         appearance: str = "flat",
@@ -149,11 +149,12 @@ class HardwareStation:
         seed: int = 0,
         settle_s: float = 0.5,
         tasks: str | Task | Sequence[str | Task] | Mapping[str, Task] | None = None,
+        rig: RigConfig | None = None,
     ) -> None:
-        self.rig_path = str(rig_path)
+        self.rig_path = str(rig_path)  # the fakes' process loads the file itself
         # The run's tasks by name (a subtask of another task is looked up among the packaged ones).
         self.tasks = _task_map(tasks)
-        self.rig = RigConfig.load(rig_path)
+        self.rig = rig if rig is not None else RigConfig.load(rig_path)
         if self.rig.hardware is None:
             raise ValueError(f"rig {self.rig.name!r} has no 'hardware:' section; use SimStation for a simulated rig")
         self.hw = self.rig.hardware
@@ -252,17 +253,19 @@ def open_station(
     operator: Operator | None = None,
     *,
     appearance: str = "flat",
+    rig: RigConfig | None = None,
 ) -> SimStation | HardwareStation:
     """The station for ``rig_path``: hardware (or its fakes) when the file has a ``hardware:`` section.
 
     ``task`` is the run's task or tasks (names, files or loaded tasks); on a hardware rig a task file
-    without objects is enough: the operator lays out each subtask and judges it."""
-    rig = RigConfig.load(rig_path)
+    without objects is enough: the operator lays out each subtask and judges it. ``rig``: the rig file
+    already loaded (a run loads it once)."""
+    rig = rig if rig is not None else RigConfig.load(rig_path)
     if rig.hardware is not None:
         if appearance != "flat":
             raise ValueError(
                 f"appearance: rig {rig.name!r} is a hardware rig; its scene is what stands on the table "
                 f"(--appearance {appearance} is for the simulated rig)"
             )
-        return HardwareStation(rig_path, operator, tasks=task)
-    return SimStation(rig_path, task, appearance=appearance)
+        return HardwareStation(rig_path, operator, tasks=task, rig=rig)
+    return SimStation(rig, task, appearance=appearance)

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import pilworld
+from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.data.episode import Episode
 from pilworld.io.atomic import atomic_write
@@ -49,23 +50,21 @@ def _rig_path(value: str, run_dir: Path) -> Path | None:
     return next((c for c in candidates if c.is_file()), None)
 
 
-def _gamma(data: RunData) -> tuple[ControlVideo | None, str]:
-    """Γ of the run's rig and chunk spec, or (None, why not)."""
-    from pilworld.config.rig import RigConfig
-
+def _gamma(data: RunData, rig: RigConfig | None = None) -> tuple[ControlVideo | None, str]:
+    """Γ of the run's rig (``rig``: already loaded by the caller) and chunk spec, or (None, why not)."""
     cfg = data.config
     if cfg is None:
         return None, "control video Γ not shown: paired_config.json is missing (the rig is unknown)"
     rig_value = cfg.get("rig")
-    if not isinstance(rig_value, str) or not rig_value:
+    if rig is None and (not isinstance(rig_value, str) or not rig_value):
         return None, "control video Γ not shown: paired_config.json names no rig"
-    path = _rig_path(rig_value, data.root)
-    if path is None:
+    path = None if rig is not None else _rig_path(str(rig_value), data.root)
+    if rig is None and path is None:
         return None, f"control video Γ not shown: rig config {rig_value!r} not found"
     try:
         spec_json = cfg.get("spec")
         spec = ChunkSpec(**spec_json) if isinstance(spec_json, Mapping) else ChunkSpec()
-        return ControlVideo.from_rig(RigConfig.load(path), spec), ""
+        return ControlVideo.from_rig(rig if rig is not None else RigConfig.load(str(path)), spec), ""
     except (ValueError, TypeError, OSError) as err:
         return None, f"control video Γ not shown: {err}"
 
@@ -295,7 +294,12 @@ def _summary(data: RunData, views: list[str], pairs: int) -> list[tuple[str, str
 
 
 def build_report(
-    run_dir: str | Path, out: str | Path | None = None, *, max_pairs: int | None = None, crf: int = DEFAULT_CRF
+    run_dir: str | Path,
+    out: str | Path | None = None,
+    *,
+    max_pairs: int | None = None,
+    crf: int = DEFAULT_CRF,
+    rig: RigConfig | None = None,
 ) -> Path:
     """Write the run's ``report.html`` (or ``out``); returns its path.
 
@@ -311,7 +315,7 @@ def build_report(
     views = ordered_views(list(data.store.spec.views))
     if not views:
         raise ValueError(f"RUN_DIR: {data.root} has no camera views")
-    gamma, gamma_note = _gamma(data)
+    gamma, gamma_note = _gamma(data, rig)
     errors = _ErrorAccumulator()
     pairs = [
         _pair_view(data, info, i, views, gamma, errors, max_pairs is None or i < max_pairs, crf)
