@@ -24,7 +24,12 @@ def register(sub: Any) -> None:
     p.add_argument("--checkpoints", required=True, help="policy checkpoints, comma-separated (scripted names, ws://)")
     p.add_argument("--out", type=Path, required=True, help="run folder (created, or resumed)")
     p.add_argument("--rig", type=Path, default=None, help="rig config (default: the one the starts were recorded on)")
-    p.add_argument("--world-model", default="", help="world-model folder (default: the packaged checkpoint)")
+    p.add_argument(
+        "--world-model",
+        default="",
+        help="world-model folder, v2 (composite), v1 (latent) or Wan2.1 (diffusers), known by its contents "
+        "(default: the packaged v2)",
+    )
     p.add_argument("--adapter", default="auto", help="LoRA adapter: auto, none, or a name (default auto)")
     p.add_argument("--steps", type=int, default=None, help="sampling steps (default: the model's)")
     p.add_argument("--rounds", type=int, default=None, help="closed-loop rounds (default: the starts' own, else 5)")

@@ -37,7 +37,12 @@ def register(sub: Any) -> None:
     r.add_argument("--subtasks", type=int, required=True, help=bounded("subtasks per task and checkpoint", SUBTASKS))
     r.add_argument("--out", type=Path, required=True, help="run folder (created, or resumed)")
     r.add_argument("--seed", type=int, default=0, help=bounded("layout seed of the first subtasks (default 0)", SEED))
-    r.add_argument("--world-model", default="", help="world-model folder (default: the packaged checkpoint)")
+    r.add_argument(
+        "--world-model",
+        default="",
+        help="world-model folder, v2 (composite), v1 (latent) or Wan2.1 (diffusers), known by its contents "
+        "(default: the packaged v2)",
+    )
     r.add_argument(
         "--adapter", default="auto", help="LoRA adapter: auto (the task's, if packaged), none, or a name (default auto)"
     )
