@@ -49,6 +49,7 @@ from numpy.typing import NDArray
 from hw_drivers.fakes.backend import RigBackend, check_side
 from hw_drivers.fakes.faults import FaultSwitch
 from hw_drivers.fakes.ur_commands import IMPLEMENTED, REALTIME, describe
+from hw_drivers.fakes.ur_dashboard import DashboardState, status_reply
 from hw_drivers.fakes.ur_pose import interpolate, matrix_to_pose, pose_to_matrix, rotvec_to_matrix
 from hw_drivers.fakes.ur_protocol import (
     CONTROLLER_VERSION,
@@ -62,9 +63,7 @@ from hw_drivers.fakes.ur_protocol import (
     MSG_U,
     MSG_V,
     PLAYING,
-    POLYSCOPE_VERSION,
     POWER_OFF,
-    ROBOT_MODE_NAMES,
     RTDE_PORT,
     RUNNING,
     SAFETY,
@@ -671,31 +670,8 @@ class FakeURController:
                     return f"Cannot {cmd}: emergency stop active"
                 self.robot_mode = {"power on": IDLE, "power off": POWER_OFF, "brake release": RUNNING}[cmd]
                 return {"power on": "Powering on", "power off": "Powering off", "brake release": "Brake releasing"}[cmd]
-            answers = {
-                "robotmode": f"Robotmode: {ROBOT_MODE_NAMES[self.robot_mode]}",
-                "safetystatus": f"Safetystatus: {SAFETY[self.safety][2]}",
-                "safetymode": f"Safetymode: {SAFETY[self.safety][2]}",
-                "programstate": f"{'PLAYING' if self.runtime_state == PLAYING else 'STOPPED'} {program}",
-                "running": f"Program running: {str(self.runtime_state == PLAYING).lower()}",
-                "polyscopeversion": POLYSCOPE_VERSION,
-                "get serial number": "20185500000",
-                "is in remote control": "true",
-                "get robot model": "UR5",
-                "get loaded program": f"Loaded program: {program}",
-                "isprogramsaved": f"true {program}",
-                "close popup": "closing popup",
-                "close safety popup": "closing safety popup",
-                "restart safety": "Restarting safety",
-                "quit": "Disconnected",
-                "shutdown": "Shutting down",
-            }
-        if cmd in answers:
-            return answers[cmd]
-        if cmd.startswith("load "):
-            return f"Loading program: {line[5:]}"
-        if cmd.startswith(("popup ", "addtolog ", "setuserrole ")):
-            return "ok"
-        return f"could not understand: '{line}'"
+            state = DashboardState(self.robot_mode, self.safety, self.runtime_state == PLAYING, program)
+        return status_reply(line, state)
 
     # -- primary/secondary script interface
 
