@@ -13,4 +13,6 @@ from pathlib import Path
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "sim_composite"
 # v1, the paper-style latent model (marker Γ, 8× VAE, 1-step flow, task adapters): its presets, sampling steps
 # and ablations are what `bench speed-accuracy`, `bench world-model` and the ladder's autoencoder rung measure.
-V1_CHECKPOINT = Path(__file__).resolve().parent / "weights" / "sim_small"
+# Not installed with the package (19 MB for a model no command uses by default): it lives in a checkout's
+# weights/v1/, beside the benchmarks' other weights.
+V1_CHECKPOINT = Path(__file__).resolve().parents[2] / "weights" / "v1" / "sim_small"
