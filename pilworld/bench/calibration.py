@@ -43,8 +43,8 @@ from tqdm import tqdm
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
-from calib.handeye import solve_eye_to_hand
 from calib.handeye_refine import refine_eye_to_hand
+from calib.handeye_solve import solve_eye_to_hand
 from calib.intrinsics import IntrinsicsOptions, calibrate_intrinsics
 from calib.rotations import pose_difference
 from calib.sweep import (
@@ -325,7 +325,7 @@ def wrist_figures(
 def wrist_degeneracy_checks() -> dict[str, Any]:
     """Pure translation and rotations about one axis must be refused, with a message naming the motion to add."""
     from calib.handeye import DegenerateMotionError
-    from calib.handeye_in_hand import solve_eye_in_hand
+    from calib.handeye_solve import solve_eye_in_hand
     from calib.rotations import rigid, rotation_exp
     from calib.sweep import T_BASE_BOARD, T_TCP_CAM
     from pilworld.geometry import invert_transform

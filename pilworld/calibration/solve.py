@@ -32,9 +32,10 @@ import numpy.typing as npt
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
-from calib.handeye import DegenerateMotionError, HandEyeResult, MotionReport, check_motion, solve_eye_to_hand
+from calib.handeye import DegenerateMotionError, MotionReport, check_motion
 from calib.handeye_opencv import OpenCvEstimate, opencv_eye_to_hand
 from calib.handeye_refine import RefinedHandEye, refine_eye_to_hand, reprojection_residuals
+from calib.handeye_solve import HandEyeResult, solve_eye_to_hand
 from calib.rotations import pose_difference, rigid, rotation_exp
 from pilworld.calibration.recording import RecordedView
 from pilworld.kinematics.dual_arm import DualArmKinematics

@@ -34,8 +34,7 @@ import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
-from calib.handeye import DegenerateMotionError
-from calib.handeye_in_hand import check_eye_in_hand_motion
+from calib.handeye import DegenerateMotionError, check_eye_in_hand_motion
 from calib.rotations import rigid, rotation_angle, rotation_exp
 from pilworld.calibration.occlusion import arm_capsules, segment_distances
 from pilworld.calibration.planner import PlannedPose, PosePlan, visit_order

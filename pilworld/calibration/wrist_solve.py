@@ -27,16 +27,10 @@ import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
-from calib.handeye import DegenerateMotionError, MotionReport
-from calib.handeye_in_hand import (
-    EyeInHandResult,
-    RefinedEyeInHand,
-    check_eye_in_hand_motion,
-    eye_in_hand_residuals,
-    refine_eye_in_hand,
-    solve_eye_in_hand,
-)
+from calib.handeye import DegenerateMotionError, MotionReport, check_eye_in_hand_motion
 from calib.handeye_opencv import opencv_eye_to_hand
+from calib.handeye_refine import RefinedEyeInHand, eye_in_hand_residuals, refine_eye_in_hand
+from calib.handeye_solve import EyeInHandResult, solve_eye_in_hand
 from calib.rotations import pose_difference
 from pilworld.calibration.recording import RecordedView
 from pilworld.calibration.solve import HandEyeView, _detect_views

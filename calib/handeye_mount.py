@@ -1,0 +1,59 @@
+"""Where the camera is mounted: the one parameter that separates the two hand-eye problems.
+
+For each pose ``i``, ``G_i`` (4x4) is forward kinematics (gripper or TCP frame → base or rig frame) and
+``C_i = T_cam_board[i]`` (board frame → camera frame, from ``solvePnP``). Two constants are unknown:
+
+* :attr:`CameraMount.EYE_TO_HAND`: the camera is fixed in the world (the head camera) and the board rides
+  on the gripper: ``C_i = X · G_i · Y`` with ``X = T_cam_base`` (base → camera: what is solved) and
+  ``Y = T_gripper_board`` (the board lies in the gripper frame).
+* :attr:`CameraMount.EYE_IN_HAND`: the camera rides on the gripper (a wrist camera) and the board is fixed
+  in the world: ``G_i · X · C_i = Y`` with ``X = T_tcp_cam`` (camera → TCP: the wrist mount) and
+  ``Y = T_base_board`` (the board lies in the base frame).
+
+Rewritten, eye-in-hand is eye-to-hand with ``X := X⁻¹``, ``G_i := G_i⁻¹`` (:meth:`CameraMount.as_fixed_camera`):
+``C_i = X⁻¹ · G_i⁻¹ · Y``. So the pixel model, its refinement and OpenCV's cross-check are written once for
+the fixed camera (:mod:`calib.handeye_refine`) and serve both mounts; only the closed forms and the advice
+on degenerate motion differ (:mod:`calib.handeye_solve`, :mod:`calib.handeye`). See docs/calibration.md,
+"Hand-eye calibration" and "Wrist cameras (eye-in-hand)".
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+
+import numpy as np
+import numpy.typing as npt
+
+from pilworld.geometry import invert_transform
+
+__all__ = ["CameraMount"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class CameraMount(Enum):
+    """Where the camera is: fixed in the world (eye-to-hand) or on the gripper (eye-in-hand)."""
+
+    EYE_TO_HAND = "eye_to_hand"
+    EYE_IN_HAND = "eye_in_hand"
+
+    @property
+    def solved(self) -> str:
+        """The name of the camera transform ``X`` that is solved."""
+        return "T_cam_base" if self is CameraMount.EYE_TO_HAND else "T_tcp_cam"
+
+    @property
+    def board_pose(self) -> str:
+        """The name of the board pose ``Y``: in the gripper frame (eye-to-hand) or the base frame (eye-in-hand)."""
+        return "T_gripper_board" if self is CameraMount.EYE_TO_HAND else "T_base_board"
+
+    @property
+    def fk(self) -> str:
+        """The name the solvers give the forward kinematics ``G_i`` in their messages."""
+        return "T_base_gripper" if self is CameraMount.EYE_TO_HAND else "T_base_tcp"
+
+    def as_fixed_camera(self, X: FloatArray, G: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(T_cam_base, T_base_gripper)`` of the eye-to-hand model that predicts the same pixels as ``X``, ``G``."""
+        if self is CameraMount.EYE_TO_HAND:
+            return X, G
+        return invert_transform(X), invert_transform(G)
