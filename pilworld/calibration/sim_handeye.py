@@ -23,7 +23,7 @@ from calib.camera_model import CameraModel
 from calib.rotations import pose_difference
 from pilworld.calibration.check import gripper_reprojection_errors
 from pilworld.calibration.collect import collect_views
-from pilworld.calibration.planner import PlannerSettings, plan_board_poses
+from pilworld.calibration.plan import PlannerSettings, plan_board_poses
 from pilworld.calibration.recording import RecordedView, Recording, SimTruth
 from pilworld.calibration.solve import HandEyeOutcome, solve_recording
 from pilworld.config.rig import RigConfig

@@ -34,9 +34,9 @@ from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
 from pilworld.calibration.collect import collect_views
+from pilworld.calibration.plan import WristPlannerSettings, plan_wrist_poses
 from pilworld.calibration.recording import RecordedView, Recording
 from pilworld.calibration.sim_handeye import DEFAULT_BOARD, HELD_OUT_SEED_OFFSET
-from pilworld.calibration.wrist_planner import WristPlannerSettings, plan_wrist_poses
 from pilworld.calibration.wrist_sim import TRUTH_KEY, WristTruth, _park_objects, sim_wrist_camera, wrist_arm
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform

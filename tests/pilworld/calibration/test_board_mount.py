@@ -16,7 +16,7 @@ import pytest
 from calib.board import ChArUcoBoard
 from calib.detect import BoardDetector
 from pilworld.calibration.collect import collect_views
-from pilworld.calibration.planner import PlannerSettings, plan_board_poses
+from pilworld.calibration.plan import PlannerSettings, plan_board_poses
 from pilworld.calibration.sim_handeye import sim_calibration_camera
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT
