@@ -10,7 +10,7 @@ For each pose ``i``, ``G_i`` (4x4) is forward kinematics (gripper or TCP frame �
   in the world: ``G_i · X · C_i = Y`` with ``X = T_tcp_cam`` (camera → TCP: the wrist mount) and
   ``Y = T_base_board`` (the board lies in the base frame).
 
-Rewritten, eye-in-hand is eye-to-hand with ``X := X⁻¹``, ``G_i := G_i⁻¹`` (:meth:`CameraMount.as_fixed_camera`):
+Rewritten, eye-in-hand is eye-to-hand with ``X := X⁻¹``, ``G_i := G_i⁻¹`` (:meth:`CameraMount.fixed_camera`):
 ``C_i = X⁻¹ · G_i⁻¹ · Y``. So the pixel model, its refinement and OpenCV's cross-check are written once for
 the fixed camera (:mod:`calib.handeye_refine`) and serve both mounts; only the closed forms and the advice
 on degenerate motion differ (:mod:`calib.handeye_solve`, :mod:`calib.handeye`). See docs/calibration.md,
@@ -52,8 +52,10 @@ class CameraMount(Enum):
         """The name the solvers give the forward kinematics ``G_i`` in their messages."""
         return "T_base_gripper" if self is CameraMount.EYE_TO_HAND else "T_base_tcp"
 
-    def as_fixed_camera(self, X: FloatArray, G: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``(T_cam_base, T_base_gripper)`` of the eye-to-hand model that predicts the same pixels as ``X``, ``G``."""
-        if self is CameraMount.EYE_TO_HAND:
-            return X, G
-        return invert_transform(X), invert_transform(G)
+    def fixed_camera(self, T: FloatArray) -> FloatArray:
+        """``X`` or FK ``G_i`` (``(4, 4)`` or ``(N, 4, 4)``) as the equivalent fixed camera's ``T_cam_base`` or FK.
+
+        Identity for eye-to-hand, inversion for eye-in-hand: the map is its own inverse, so it also takes the
+        fixed camera's ``T_cam_base`` back to this mount's ``X``.
+        """
+        return T if self is CameraMount.EYE_TO_HAND else invert_transform(T)

@@ -5,7 +5,7 @@ board pose (poorly measured by solvePnP) like a close, frontal one. Here the cam
 pose are fitted directly to the detected corners. The pixel model is the fixed camera's: corner ``k`` of
 pose ``i`` is predicted at ``π(K, dist, T_cam_base · T_base_gripper[i] · T_gripper_board · P_k)``; a wrist
 camera is the same model with ``T_cam_base := T_tcp_cam⁻¹``, ``T_base_gripper := G_i⁻¹`` and
-``T_gripper_board := T_base_board`` (:meth:`calib.handeye_mount.CameraMount.as_fixed_camera`), so
+``T_gripper_board := T_base_board`` (:meth:`calib.handeye_mount.CameraMount.fixed_camera`), so
 :func:`refine_hand_eye` runs one solver (:func:`calib.rigid_lm.levenberg_marquardt`, 12 parameters: cheap)
 for both mounts. Forward kinematics is taken as exact (its error shows up as residual).
 
@@ -31,7 +31,6 @@ from calib.distortion import DistortionModel
 from calib.handeye_mount import CameraMount
 from calib.rigid_lm import huber, levenberg_marquardt, numeric_jacobian, update_transforms
 from calib.rotations import as_transforms
-from pilworld.geometry import invert_transform
 
 __all__ = [
     "HandEyeRefinement",
@@ -188,8 +187,8 @@ def hand_eye_residuals(
 ) -> FloatArray:
     """``(sum n_i, 2)`` predicted minus detected pixels for ``mount``'s camera transform ``X`` and board pose ``Y``."""
     G = as_transforms(T_base_gripper, mount.fk)
-    X_fixed, G_fixed = mount.as_fixed_camera(as_transforms([X], mount.solved)[0], G)
-    return reprojection_residuals(X_fixed, Y, G_fixed, board_points, image_points, K, dist)
+    X_fixed = mount.fixed_camera(as_transforms([X], mount.solved)[0])
+    return reprojection_residuals(X_fixed, Y, mount.fixed_camera(G), board_points, image_points, K, dist)
 
 
 def eye_in_hand_residuals(
@@ -290,11 +289,11 @@ def refine_eye_in_hand(
     """
     mount = CameraMount.EYE_IN_HAND
     G = as_transforms(T_base_tcp, "T_base_tcp")
-    X0_fixed, G_fixed = mount.as_fixed_camera(as_transforms([T_tcp_cam], "T_tcp_cam")[0], G)
+    X0_fixed = mount.fixed_camera(as_transforms([T_tcp_cam], "T_tcp_cam")[0])
     fixed = refine_eye_to_hand(
-        X0_fixed, T_base_board, G_fixed, board_points, image_points, K, dist, huber_px, max_iterations
+        X0_fixed, T_base_board, mount.fixed_camera(G), board_points, image_points, K, dist, huber_px, max_iterations
     )
-    X, W = invert_transform(fixed.X), fixed.Y
+    X, W = mount.fixed_camera(fixed.X), fixed.Y
     return RefinedEyeInHand(
         X=X,
         Y=W,

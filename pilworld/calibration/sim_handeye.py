@@ -25,7 +25,7 @@ from pilworld.calibration.check import gripper_reprojection_errors
 from pilworld.calibration.collect import collect_views
 from pilworld.calibration.plan import PlannerSettings, plan_board_poses
 from pilworld.calibration.recording import RecordedView, Recording, SimTruth
-from pilworld.calibration.solve import HandEyeOutcome, solve_recording
+from pilworld.calibration.solve_arms import HandEyeOutcome, solve_recording
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_SIDES, HEAD_VIEW
 from simrig.board_mount import BoardMount

@@ -4,7 +4,7 @@ A :class:`simrig.table_board.TableBoard` lies flat on the table beside the tasks
 are moved to the far edge of the table so they never cover it); the wrist camera renders at a
 calibration resolution (``resolution`` pixels wide, the rig's field of view, so the intrinsics scale
 exactly); the planner (:mod:`.plan`), the collector (:func:`pilworld.calibration.collect.collect_views`)
-and the solver (:mod:`.wrist_solve`) are the ones a real rig uses. Ground truth: ``T_tcp_cam`` is the
+and the solver (:mod:`.solve`) are the ones a real rig uses. Ground truth: ``T_tcp_cam`` is the
 camera's ``pose_in_tcp`` in the rig config and ``T_rig_board`` is the table board's pose.
 :func:`run_sim_wrist` is what ``pilworld bench calibration`` calls.
 """
@@ -27,7 +27,7 @@ from pilworld.calibration.collect import collect_views
 from pilworld.calibration.plan import WristPlannerSettings, plan_wrist_poses
 from pilworld.calibration.recording import Recording
 from pilworld.calibration.sim_handeye import DEFAULT_BOARD
-from pilworld.calibration.wrist_solve import WristHandEye, calibrate_wrist
+from pilworld.calibration.solve import WristHandEye, calibrate_wrist
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
 from simrig.robot import SimRobot

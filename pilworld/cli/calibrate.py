@@ -336,7 +336,7 @@ def _recording(
 def _handeye(args: argparse.Namespace) -> int:
     # Imported here: the simulator (MuJoCo, GL) is only needed by these two commands.
     from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, held_out_states, record_sim, truth_errors
-    from pilworld.calibration.solve import solve_recording
+    from pilworld.calibration.solve_arms import solve_recording
 
     start = time.perf_counter()
     rig = RigConfig.load(args.rig)
@@ -443,8 +443,8 @@ def _handeye(args: argparse.Namespace) -> int:
 def _handeye_wrist(args: argparse.Namespace, rig: RigConfig, start: float) -> int:
     """``handeye --camera <wrist camera>``: eye-in-hand, the board fixed on the table, the camera's arm moving."""
     from pilworld.calibration.sim_handeye import DEFAULT_BOARD
+    from pilworld.calibration.solve import calibrate_wrist
     from pilworld.calibration.wrist_sim import WristTruth, record_sim_wrist, wrist_arm, wrist_truth_errors
-    from pilworld.calibration.wrist_solve import calibrate_wrist
 
     name = args.camera
     arm = wrist_arm(rig, name)  # a one-line error listing the rig's cameras for an unknown name

@@ -26,7 +26,7 @@ from pilworld.calibration.sim_handeye import (
     sim_calibration_camera,
     truth_errors,
 )
-from pilworld.calibration.solve import solve_recording
+from pilworld.calibration.solve_arms import solve_recording
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.types import LEFT_ARM

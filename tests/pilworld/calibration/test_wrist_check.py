@@ -12,9 +12,9 @@ from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.rotations import rigid, rotation_exp
 from pilworld.calibration.recording import Recording
+from pilworld.calibration.solve import calibrate_wrist
 from pilworld.calibration.wrist_check import WristCheckResult, check_wrist_views, record_wrist_check_sim
 from pilworld.calibration.wrist_sim import record_sim_wrist
-from pilworld.calibration.wrist_solve import calibrate_wrist
 from pilworld.cli.calibrate import _write_rig
 from pilworld.cli.main import main
 from pilworld.config.rig import RigConfig

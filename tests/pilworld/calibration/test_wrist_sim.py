@@ -13,6 +13,7 @@ from calib.detect import BoardDetector
 from calib.handeye import DegenerateMotionError
 from calib.rotations import pose_difference
 from pilworld.calibration.recording import Recording
+from pilworld.calibration.solve import calibrate_wrist
 from pilworld.calibration.wrist_sim import (
     WristTruth,
     record_sim_wrist,
@@ -21,7 +22,6 @@ from pilworld.calibration.wrist_sim import (
     wrist_arm,
     wrist_truth_errors,
 )
-from pilworld.calibration.wrist_solve import calibrate_wrist
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
 from simrig.robot import SimRobot
