@@ -241,7 +241,7 @@ WRIST_CAMERAS: Final = ("cam_left_wrist", "cam_right_wrist")
 
 
 def _wrist_sim(rig_path: Path, camera: str, poses: int, seed: int, resolution: int) -> dict[str, Any]:
-    module = importlib.import_module("pilworld.calibration.wrist_sim")
+    module = importlib.import_module("pilworld.calibration.sim_handeye")
     from pilworld.config.rig import RigConfig
 
     result: dict[str, Any] = dict(

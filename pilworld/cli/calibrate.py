@@ -18,7 +18,7 @@ Degenerate motion exits with ``pilworld: error: hand-eye: degenerate motion: <ar
 ``check`` projects the FK gripper points (and, with the hand-eye report, the board corners) on held-out
 views (``--images DIR`` or new simulated poses), prints the pixel error per arm and writes overlays. With
 ``--camera cam_left_wrist`` it checks a wrist camera eye-in-hand: the board corners FK · ``T_tcp_cam`` ·
-``T_rig_board`` predicts against the detected ones, per view (``pilworld.calibration.wrist_check``).
+``T_rig_board`` predicts against the detected ones, per view (``pilworld.calibration.check``).
 See docs/calibration.md. Live capture from a real camera (``--camera SOURCE``) is not implemented yet.
 """
 
@@ -335,7 +335,8 @@ def _recording(
 
 def _handeye(args: argparse.Namespace) -> int:
     # Imported here: the simulator (MuJoCo, GL) is only needed by these two commands.
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, held_out_states, record_sim, truth_errors
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, held_out_states, record_sim
+    from pilworld.calibration.sim_truth import truth_errors
     from pilworld.calibration.solve_arms import solve_recording
 
     start = time.perf_counter()
@@ -442,9 +443,10 @@ def _handeye(args: argparse.Namespace) -> int:
 
 def _handeye_wrist(args: argparse.Namespace, rig: RigConfig, start: float) -> int:
     """``handeye --camera <wrist camera>``: eye-in-hand, the board fixed on the table, the camera's arm moving."""
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD
+    from pilworld.calibration.sim_cameras import wrist_arm
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, record_sim_wrist
+    from pilworld.calibration.sim_truth import WristTruth, wrist_truth_errors
     from pilworld.calibration.solve import calibrate_wrist
-    from pilworld.calibration.wrist_sim import WristTruth, record_sim_wrist, wrist_arm, wrist_truth_errors
 
     name = args.camera
     arm = wrist_arm(rig, name)  # a one-line error listing the rig's cameras for an unknown name
@@ -580,7 +582,8 @@ def _arm_line(name: str, d: dict[str, Any]) -> str:
 def _check(args: argparse.Namespace) -> int:
     from pilworld.calibration.check import check_views
     from pilworld.calibration.recording import Recording
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, record_sim, sim_calibration_camera
+    from pilworld.calibration.sim_cameras import sim_calibration_camera
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, record_sim
 
     rig = RigConfig.load(args.rig)
     if args.camera != HEAD_VIEW:
@@ -672,10 +675,11 @@ def _check(args: argparse.Namespace) -> int:
 
 def _check_wrist(args: argparse.Namespace, rig: RigConfig) -> int:
     """``check --camera <wrist camera>``: FK-predicted board corners on held-out views of the table board."""
+    from pilworld.calibration.check import check_wrist_views
     from pilworld.calibration.recording import Recording
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD
-    from pilworld.calibration.wrist_check import check_wrist_views, record_wrist_check_sim
-    from pilworld.calibration.wrist_sim import WristTruth, sim_wrist_camera, wrist_arm
+    from pilworld.calibration.sim_cameras import sim_wrist_camera, wrist_arm
+    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, record_wrist_check_sim
+    from pilworld.calibration.sim_truth import WristTruth
 
     name = args.camera
     arm = wrist_arm(rig, name)  # a one-line error listing the rig's cameras for an unknown name
