@@ -20,13 +20,15 @@ on degenerate motion differ (:mod:`calib.handeye_solve`, :mod:`calib.handeye`). 
 from __future__ import annotations
 
 from enum import Enum
+from operator import attrgetter
+from typing import overload
 
 import numpy as np
 import numpy.typing as npt
 
 from pilworld.geometry import invert_transform
 
-__all__ = ["CameraMount"]
+__all__ = ["CameraMount", "TransformName"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -59,3 +61,25 @@ class CameraMount(Enum):
         fixed camera's ``T_cam_base`` back to this mount's ``X``.
         """
         return T if self is CameraMount.EYE_TO_HAND else invert_transform(T)
+
+
+class TransformName:
+    """A read-only attribute naming one of a result's transforms as its mount does (``T_cam_base`` for ``X`` …).
+
+    The solvers of both mounts share one code path on ``X`` and ``Y``; the result classes give them the names a
+    user of that mount reads. ``path`` is the attribute (dotted: ``"refined.X"``) it reads.
+    """
+
+    def __init__(self, path: str, doc: str) -> None:
+        self._get = attrgetter(path)
+        self.__doc__ = doc
+
+    @overload
+    def __get__(self, obj: None, owner: type) -> TransformName: ...
+    @overload
+    def __get__(self, obj: object, owner: type | None = None) -> FloatArray: ...
+    def __get__(self, obj: object, owner: type | None = None) -> TransformName | FloatArray:
+        if obj is None:
+            return self
+        value: FloatArray = self._get(obj)
+        return value

@@ -22,13 +22,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Final, Literal, overload
+from typing import Any, Final
 
 import numpy as np
 import numpy.typing as npt
 
 from calib.distortion import DistortionModel
-from calib.handeye_mount import CameraMount
+from calib.handeye_mount import CameraMount, TransformName
 from calib.rigid_lm import huber, levenberg_marquardt, numeric_jacobian, update_transforms
 from calib.rotations import as_transforms
 
@@ -66,15 +66,8 @@ class HandEyeRefinement:
 class RefinedHandEye(HandEyeRefinement):
     """The refined eye-to-hand transforms."""
 
-    @property
-    def T_cam_base(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Maps base-frame points into the camera frame."""
-        return self.X
-
-    @property
-    def T_gripper_board(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Maps board-frame points into the gripper frame."""
-        return self.Y
+    T_cam_base = TransformName("X", "Maps base-frame points into the camera frame.")
+    T_gripper_board = TransformName("Y", "Maps board-frame points into the gripper frame.")
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,15 +78,8 @@ class RefinedEyeInHand(HandEyeRefinement):
     #: updates ``R ← exp(ω) R``, ``t ← t + δ`` of ``T_tcp_cam`` and ``T_base_board``
     covariance: FloatArray
 
-    @property
-    def T_tcp_cam(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Camera-frame points → TCP frame."""
-        return self.X
-
-    @property
-    def T_base_board(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Board-frame points → base frame."""
-        return self.Y
+    T_tcp_cam = TransformName("X", "Camera-frame points → TCP frame.")
+    T_base_board = TransformName("Y", "Board-frame points → base frame.")
 
     @property
     def sigma_translation_mm(self) -> FloatArray:
@@ -312,42 +298,6 @@ _REFINERS: Final[dict[CameraMount, Callable[..., HandEyeRefinement]]] = {
 }
 
 
-@overload
-def refine_hand_eye(
-    mount: Literal[CameraMount.EYE_TO_HAND],
-    X: npt.ArrayLike,
-    Y: npt.ArrayLike,
-    T_base_gripper: Poses,
-    board_points: Points,
-    image_points: Points,
-    K: npt.ArrayLike,
-    dist: npt.ArrayLike,
-    huber_px: float = ...,
-) -> RefinedHandEye: ...
-@overload
-def refine_hand_eye(
-    mount: Literal[CameraMount.EYE_IN_HAND],
-    X: npt.ArrayLike,
-    Y: npt.ArrayLike,
-    T_base_gripper: Poses,
-    board_points: Points,
-    image_points: Points,
-    K: npt.ArrayLike,
-    dist: npt.ArrayLike,
-    huber_px: float = ...,
-) -> RefinedEyeInHand: ...
-@overload
-def refine_hand_eye(
-    mount: CameraMount,
-    X: npt.ArrayLike,
-    Y: npt.ArrayLike,
-    T_base_gripper: Poses,
-    board_points: Points,
-    image_points: Points,
-    K: npt.ArrayLike,
-    dist: npt.ArrayLike,
-    huber_px: float = ...,
-) -> HandEyeRefinement: ...
 def refine_hand_eye(
     mount: CameraMount,
     X: npt.ArrayLike,

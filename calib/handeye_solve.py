@@ -21,13 +21,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Final, Literal, overload
+from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 
 from calib.handeye import METHODS, Method, MotionReport, check_hand_eye_motion, pose_pairs, solve_ax_xb, solve_ax_zb
-from calib.handeye_mount import CameraMount
+from calib.handeye_mount import CameraMount, TransformName
 from calib.rotations import as_transforms, nearest_rotation, pose_difference, rigid
 from pilworld.geometry import invert_transform
 
@@ -69,29 +69,15 @@ class HandEyeSolution:
 class HandEyeResult(HandEyeSolution):
     """An eye-to-hand solution: a fixed camera and a board in the gripper."""
 
-    @property
-    def T_cam_base(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Maps base-frame points into the camera frame."""
-        return self.X
-
-    @property
-    def T_gripper_board(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Maps board-frame points into the gripper frame."""
-        return self.Y
+    T_cam_base = TransformName("X", "Maps base-frame points into the camera frame.")
+    T_gripper_board = TransformName("Y", "Maps board-frame points into the gripper frame.")
 
 
 class EyeInHandResult(HandEyeSolution):
     """An eye-in-hand solution: a camera on the arm and a board fixed in the world."""
 
-    @property
-    def T_tcp_cam(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Camera-frame points → TCP frame (the wrist mount)."""
-        return self.X
-
-    @property
-    def T_base_board(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Board-frame points → base frame (where the board lies)."""
-        return self.Y
+    T_tcp_cam = TransformName("X", "Camera-frame points → TCP frame (the wrist mount).")
+    T_base_board = TransformName("Y", "Board-frame points → base frame (where the board lies).")
 
     @property
     def T_cam_tcp(self) -> FloatArray:  # noqa: N802 - the transform's name
@@ -143,33 +129,6 @@ _RESULTS: Final[dict[CameraMount, type[HandEyeSolution]]] = {
 }
 
 
-@overload
-def solve_hand_eye(
-    mount: Literal[CameraMount.EYE_TO_HAND],
-    T_base_gripper: Poses,
-    T_cam_board: Poses,
-    method: Method = ...,
-    min_rotation_span_deg: float = ...,
-    min_axis_spread: float = ...,
-) -> HandEyeResult: ...
-@overload
-def solve_hand_eye(
-    mount: Literal[CameraMount.EYE_IN_HAND],
-    T_base_gripper: Poses,
-    T_cam_board: Poses,
-    method: Method = ...,
-    min_rotation_span_deg: float = ...,
-    min_axis_spread: float = ...,
-) -> EyeInHandResult: ...
-@overload
-def solve_hand_eye(
-    mount: CameraMount,
-    T_base_gripper: Poses,
-    T_cam_board: Poses,
-    method: Method = ...,
-    min_rotation_span_deg: float = ...,
-    min_axis_spread: float = ...,
-) -> HandEyeSolution: ...
 def solve_hand_eye(
     mount: CameraMount,
     T_base_gripper: Poses,
@@ -203,8 +162,10 @@ def solve_eye_to_hand(
     min_axis_spread: float = 0.1,
 ) -> HandEyeResult:
     """:func:`solve_hand_eye` for a fixed camera and a board in the gripper: ``T_cam_base``, ``T_gripper_board``."""
-    mount: Final = CameraMount.EYE_TO_HAND
-    return solve_hand_eye(mount, T_base_gripper, T_cam_board, method, min_rotation_span_deg, min_axis_spread)
+    mount = CameraMount.EYE_TO_HAND
+    result = solve_hand_eye(mount, T_base_gripper, T_cam_board, method, min_rotation_span_deg, min_axis_spread)
+    assert isinstance(result, HandEyeResult)  # the mount's result class (_RESULTS)
+    return result
 
 
 def solve_eye_in_hand(
@@ -215,5 +176,7 @@ def solve_eye_in_hand(
     min_axis_spread: float = 0.1,
 ) -> EyeInHandResult:
     """:func:`solve_hand_eye` for a camera on the arm and a fixed board: ``T_tcp_cam``, ``T_base_board``."""
-    mount: Final = CameraMount.EYE_IN_HAND
-    return solve_hand_eye(mount, T_base_tcp, T_cam_board, method, min_rotation_span_deg, min_axis_spread)
+    mount = CameraMount.EYE_IN_HAND
+    result = solve_hand_eye(mount, T_base_tcp, T_cam_board, method, min_rotation_span_deg, min_axis_spread)
+    assert isinstance(result, EyeInHandResult)  # the mount's result class (_RESULTS)
+    return result

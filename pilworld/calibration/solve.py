@@ -35,7 +35,7 @@ import numpy.typing as npt
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.handeye import DegenerateMotionError, MotionReport, check_hand_eye_motion
-from calib.handeye_mount import CameraMount
+from calib.handeye_mount import CameraMount, TransformName
 from calib.handeye_opencv import OpenCvEstimate, opencv_hand_eye
 from calib.handeye_refine import (
     HandEyeRefinement,
@@ -113,15 +113,8 @@ class ArmSolve(Generic[S, R]):
 class ArmHandEye(ArmSolve[HandEyeResult, RefinedHandEye]):
     """The eye-to-hand result of one arm."""
 
-    @property
-    def T_cam_base(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Refined, rig frame → camera frame."""
-        return self.refined.T_cam_base
-
-    @property
-    def T_tcp_board(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Refined, board frame → TCP frame."""
-        return self.refined.T_gripper_board
+    T_cam_base = TransformName("refined.X", "Refined, rig frame → camera frame.")
+    T_tcp_board = TransformName("refined.Y", "Refined, board frame → TCP frame.")
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-friendly summary (millimetres and degrees)."""
@@ -140,15 +133,8 @@ class WristHandEye(ArmSolve[EyeInHandResult, RefinedEyeInHand]):
     camera: str  #: the wrist camera's name (e.g. cam_left_wrist)
     intrinsics: CameraModel  #: the intrinsics used, at the images' resolution
 
-    @property
-    def T_tcp_cam(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Refined: camera-frame points → TCP frame."""
-        return self.refined.T_tcp_cam
-
-    @property
-    def T_rig_board(self) -> FloatArray:  # noqa: N802 - the transform's name
-        """Refined: board-frame points → rig frame."""
-        return self.refined.T_base_board
+    T_tcp_cam = TransformName("refined.X", "Refined: camera-frame points → TCP frame.")
+    T_rig_board = TransformName("refined.Y", "Refined: board-frame points → rig frame.")
 
     @property
     def T_cam_tcp(self) -> FloatArray:  # noqa: N802 - the transform's name
