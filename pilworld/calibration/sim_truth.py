@@ -30,7 +30,7 @@ from pilworld.calibration.solve_arms import HandEyeOutcome
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
 
-__all__ = ["TRUTH_KEY", "WristTruth", "truth_errors", "wrist_truth_errors"]
+__all__ = ["TRUTH_KEY", "WristTruth", "truth_errors", "truth_line", "wrist_truth_errors", "wrist_truth_line"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -85,6 +85,16 @@ def truth_errors(rig: RigConfig, outcome: HandEyeOutcome, truth: SimTruth, state
     return out
 
 
+def truth_line(errors: dict[str, Any]) -> str:
+    """:func:`truth_errors` in one line."""
+    w, h = errors["gripper_image_size"]
+    return (
+        f"vs the simulator's truth: T_cam_base off by {errors['translation_err_mm']:.3f} mm and "
+        f"{errors['rotation_err_deg']:.4f}°; held-out gripper points off by max {errors['gripper_reproj_err_px']:.3f}"
+        f" px (mean {errors['gripper_reproj_mean_px']:.3f} px) at {w}x{h}"
+    )
+
+
 def wrist_truth_errors(rig: RigConfig, result: WristHandEye, truth: WristTruth) -> dict[str, Any]:
     """True errors of a simulated wrist calibration: the mount, the board pose, the board corners drawn.
 
@@ -110,3 +120,13 @@ def wrist_truth_errors(rig: RigConfig, result: WristHandEye, truth: WristTruth) 
         "board_reproj_err_px": worst,
         "board_reproj_image_size": [small.width, small.height],
     }
+
+
+def wrist_truth_line(errors: dict[str, Any]) -> str:
+    """:func:`wrist_truth_errors` in one line."""
+    w, h = errors["board_reproj_image_size"]
+    return (
+        f"vs the simulator's truth: T_tcp_cam off by {errors['translation_err_mm']:.3f} mm and "
+        f"{errors['rotation_err_deg']:.4f}°; board corners drawn off by max {errors['board_reproj_err_px']:.4f} px "
+        f"at {w}x{h}"
+    )
