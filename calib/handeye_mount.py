@@ -14,7 +14,7 @@ Rewritten, eye-in-hand is eye-to-hand with ``X := X⁻¹``, ``G_i := G_i⁻¹`` 
 ``C_i = X⁻¹ · G_i⁻¹ · Y``. So the pixel model, its refinement and OpenCV's cross-check are written once for
 the fixed camera (:mod:`calib.handeye_refine`) and serve both mounts; only the closed forms and the advice
 on degenerate motion differ (:mod:`calib.handeye_solve`, :mod:`calib.handeye`). See docs/calibration.md,
-"Hand-eye calibration" and "Wrist cameras (eye-in-hand)".
+"3. Hand-eye" and "Wrist cameras (eye-in-hand)".
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ mount's own parameters: ``cov = σ̂² (JᵀWJ)⁻¹`` with ``σ̂²`` the weigh
 reported as σ of ``T_tcp_cam``'s translation (mm, TCP axes) and rotation (deg, about TCP axes). It covers
 pixel noise only: FK and intrinsics errors are not in it (they show up as residual and as bias).
 :func:`refine_shared_camera` fits one fixed camera to several boards (one per arm) with the same solver.
-See docs/calibration.md, "Hand-eye calibration".
+See docs/calibration.md, "3. Hand-eye".
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 :func:`solve_hand_eye` takes the mount (:class:`calib.handeye_mount.CameraMount`), FK ``G_i`` and PnP
 ``C_i = T_cam_board[i]``, refuses degenerate motion (:func:`calib.handeye.check_hand_eye_motion`) and solves
 for the camera transform ``X`` and the board pose ``Y``. What differs between the mounts is only how the
-equations are built from the poses (see docs/calibration.md, "Hand-eye calibration"):
+equations are built from the poses (see docs/calibration.md, "3. Hand-eye"):
 
 * **eye-to-hand** (``X = T_cam_base``, ``Y = T_gripper_board``). AX = XB: for pose pairs ``(i, j)``,
   ``A = C_j C_i⁻¹`` and ``B = G_j G_i⁻¹``; ``Y`` is averaged from ``G_i⁻¹ X⁻¹ C_i`` afterwards.

@@ -3,7 +3,7 @@
 This is the input of every hand-eye solve, whatever the camera mount: the ChArUco corners are detected
 (:class:`calib.detect.BoardDetector`) and PnP with the known intrinsics gives ``T_cam_board``; FK of the
 *measured* joints of the view's arm gives ``T_base_gripper`` (rig frame). Views with too few corners or a
-bad PnP fit are skipped with the reason (docs/calibration.md, "Hand-eye calibration").
+bad PnP fit are skipped with the reason (docs/calibration.md, "3. Hand-eye").
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Checks of a calibrated camera on held-out views, for either camera mount: what ``pilworld calibrate check`` runs.
 
 Both compare what FK and the calibration predict with what the camera sees, view by view (docs/calibration.md,
-"Checking a calibration"); the overlays are drawn by :mod:`.check_overlay`.
+"4. Check" and "Wrist cameras (eye-in-hand)"); the overlays are drawn by :mod:`.check_overlay`.
 
 * **Head camera** (eye-to-hand, :func:`check_views`). *Gripper points*: both arms' TCPs from FK of the
   measured state (``DualArmKinematics.gripper_points``) are projected with the calibrated model. On a

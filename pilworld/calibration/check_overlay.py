@@ -1,4 +1,6 @@
-"""Overlay images of a calibration check, for a person to judge (docs/calibration.md, "Checking a calibration").
+"""Overlay images of a calibration check, for a person to judge.
+
+See docs/calibration.md, "4. Check" and "Wrist cameras (eye-in-hand)".
 
 Head camera (:func:`draw_overlay`): a cross per gripper at its FK-projected point (left red, right blue,
 as in the control video), a circle at the truth when it is known, and the FK-predicted board corners as

@@ -7,7 +7,7 @@ One planner serves both mounts (:class:`calib.handeye_mount.CameraMount`); what 
 * **eye-in-hand** (:func:`plan_wrist_poses`): the arm carries a wrist camera (nominal mount
   ``T_tcp_cam``) above the board fixed on the table at a (nominal) ``T_rig_board``.
 
-The steps are the same (docs/calibration.md, "Pose planner"):
+The steps are the same (docs/calibration.md, "3. Hand-eye" and "Wrist cameras (eye-in-hand)"):
 
 1. **Sample** candidate views (:mod:`.plan_sampling`: board poses, or camera poses).
 2. **Keep** the candidates that pass every check (:mod:`.plan_filters`: the page inside the image, not too

@@ -7,7 +7,7 @@ base, shoulder and elbow stay near their start, the arm stays above the table, a
 the camera to the board passes through an arm (capsule model, :mod:`.occlusion`). Each mount adds what
 only it needs (:class:`HeldBoardFilters`: the board above the table and clear of the holding arm;
 :class:`CarriedCameraFilters`: the page clear of the camera's own gripper in the image) and orders the
-checks; the first that fails names the rejection (docs/calibration.md, "Pose planner").
+checks; the first that fails names the rejection (docs/calibration.md, "3. Hand-eye" and "Wrist cameras (eye-in-hand)").
 """
 
 from __future__ import annotations

@@ -14,7 +14,8 @@
   (so IK stays near them). Varied azimuths and rolls give rotations about many axes, which AX = XB needs.
 
 Both yield :class:`Candidate` views in the rig frame, in the order the random draws are made, for the
-shared filters of :mod:`pilworld.calibration.plan_filters` (docs/calibration.md, "Pose planner").
+shared filters of :mod:`pilworld.calibration.plan_filters` (docs/calibration.md, "3. Hand-eye" and "Wrist
+cameras (eye-in-hand)").
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@ The two mounts sample different things, so their settings differ in the sampling
 :class:`PlannerSettings` places the *board* (held by the gripper) in front of the fixed head camera,
 :class:`WristPlannerSettings` places the *camera* (on the wrist) above the board fixed on the table. How
 many poses, the image margin, the view angle, the clearance and the spread metric are the same filters for
-both, validated once (:func:`_validate`). Metres and degrees, rig frame (docs/calibration.md, "Pose planner").
+both, validated once (:func:`_validate`). Metres and degrees, rig frame (docs/calibration.md, "3. Hand-eye"
+and "Wrist cameras (eye-in-hand)").
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 The held-out views come from a recorded folder, from a hardware rig's robot (the command's own collector,
 :attr:`CheckRequest.collect`) or, by default, from new poses on the simulated rig (another planner seed
-than the calibration's). Then, by the camera (docs/calibration.md, "Checking a calibration"):
+than the calibration's). Then, by the camera (docs/calibration.md, "4. Check" and "Wrist cameras (eye-in-hand)"):
 
 * the **head camera** (eye-to-hand): FK-projected gripper points per arm (against the truth when it is
   known) and, with the hand-eye report's board mounts, the board corners by FK

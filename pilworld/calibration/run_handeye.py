@@ -2,7 +2,7 @@
 
 The views come from a recorded folder (``NNN.png`` + ``poses.json``), from a hardware rig's robot (the
 command's own collector, :attr:`HandEyeRequest.collect`) or, by default, from the simulated rig
-(:mod:`.sim_handeye`; kept with ``save``). Then, by the camera (docs/calibration.md, "Hand-eye calibration"
+(:mod:`.sim_handeye`; kept with ``save``). Then, by the camera (docs/calibration.md, "3. Hand-eye"
 and "Wrist cameras (eye-in-hand)"):
 
 * the **head camera** (eye-to-hand) is solved with one arm or both (:func:`.solve_arms.solve_recording`)

@@ -4,7 +4,8 @@ The simulator renders an undistorted pinhole with square pixels and the principa
 centre, so the intrinsics at any width follow from the field of view: a render ``resolution`` pixels wide
 has ``f`` scaled with the height (MuJoCo's ``fovy`` spans the image height). The head camera keeps its
 pose (``T_cam_base``, rig frame); a wrist camera sits at its *designed* mount (``T_cam_base = T_cam_tcp``,
-the ``wrist_cameras.<name>.file`` convention), see docs/calibration.md, "Simulated rig".
+the ``wrist_cameras.<name>.file`` convention), see docs/calibration.md, "Measured on the simulated rig" and
+"Wrist cameras (eye-in-hand)".
 """
 
 from __future__ import annotations

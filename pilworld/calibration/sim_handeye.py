@@ -13,7 +13,7 @@ pixels wide, the rig's field of view, so the intrinsics scale exactly, :mod:`.si
 
 Ground truth (:mod:`.sim_truth`) comes from the rig config and the board's placement.
 :func:`run_sim_handeye` and :func:`run_sim_wrist` are what ``pilworld bench calibration`` calls
-(docs/calibration.md, "Simulated rig").
+(docs/calibration.md, "Measured on the simulated rig" and "Wrist cameras (eye-in-hand)").
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@
   table board's pose (:class:`WristTruth`, kept in a recording's ``poses.json`` under :data:`TRUTH_KEY`);
   the errors are the mount's, the board pose's and the board corners' drawn at the rig's image size.
 
-See docs/calibration.md, "Simulated rig".
+See docs/calibration.md, "Measured on the simulated rig" and "Wrist cameras (eye-in-hand)".
 """
 
 from __future__ import annotations

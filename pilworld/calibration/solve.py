@@ -3,7 +3,7 @@
 The steps are the same for the head camera (eye-to-hand, :func:`calibrate_arm`: the board held by the
 arm) and for a wrist camera (eye-in-hand, :func:`calibrate_wrist`: the board on the table, the camera on
 the arm); only the mount (:class:`calib.handeye_mount.CameraMount`) changes (docs/calibration.md,
-"Hand-eye calibration" and "Wrist cameras (eye-in-hand)"):
+"3. Hand-eye" and "Wrist cameras (eye-in-hand)"):
 
 1. detect the board and solve PnP in every view, FK of the *measured* joints in the rig frame
    (:func:`pilworld.calibration.board_views.detect_views`); views with too few corners or a bad PnP fit

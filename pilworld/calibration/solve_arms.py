@@ -5,7 +5,7 @@ solved on its own, the two ``T_cam_base`` are compared (their disagreement is a 
 mount and calibration error), and the combined estimate is a **joint refinement**: one ``T_cam_base`` and
 one ``T_tcp_board`` per arm fitted to every corner of both arms' views (the same Huber loss,
 :func:`calib.handeye_refine.refine_shared_camera`), started from the arm with the lower residual
-(docs/calibration.md, "Hand-eye calibration").
+(docs/calibration.md, "3. Hand-eye").
 """
 
 from __future__ import annotations
