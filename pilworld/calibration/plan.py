@@ -96,8 +96,8 @@ class PosePlan:
 
 
 @dataclass(frozen=True)
-class _Wording:
-    """How a mount's planner names itself and its candidates in messages, and its random stream."""
+class _MountPlanning:
+    """What a mount's planner does differently besides sampling and filtering: messages, random stream, start."""
 
     planner: str  #: in "none of N candidate … poses is feasible"
     candidates: str
@@ -108,9 +108,9 @@ class _Wording:
     exhaustive_start_up_to: int
 
 
-_WORDING: Final = {
-    CameraMount.EYE_TO_HAND: _Wording("pose planner", "board", "planned board poses", 4711, 600),
-    CameraMount.EYE_IN_HAND: _Wording("wrist pose planner", "camera", "planned wrist-camera poses", 2024, 0),
+_PLANNING: Final = {
+    CameraMount.EYE_TO_HAND: _MountPlanning("pose planner", "board", "planned board poses", 4711, 600),
+    CameraMount.EYE_IN_HAND: _MountPlanning("wrist pose planner", "camera", "planned wrist-camera poses", 2024, 0),
 }
 
 
@@ -123,7 +123,7 @@ def _plan(
     for_calibration: bool,
 ) -> PosePlan:
     """Steps 2-4 of the module docstring on ``candidates``."""
-    words = _WORDING[mount]
+    words = _PLANNING[mount]
     rejected: dict[str, int] = {}
     feasible: list[PlannedPose] = []
     held: list[FloatArray] = []
@@ -161,7 +161,7 @@ def _plan(
 
 
 def _rng(seed: int, arm: str, mount: CameraMount) -> np.random.Generator:
-    return np.random.default_rng([seed, 0 if arm == "left" else 1, _WORDING[mount].rng_stream])
+    return np.random.default_rng([seed, 0 if arm == "left" else 1, _PLANNING[mount].rng_stream])
 
 
 def plan_board_poses(
