@@ -83,16 +83,12 @@ def _refusing_degenerate_motion() -> Iterator[None]:
         raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
 
 
-def _views(
-    request: HandEyeRequest, record: Callable[..., Recording], target: str, board: ChArUcoBoard | None, log: Log
-) -> tuple[Recording, str]:
-    """The views to solve and where they came from: the folder, or a new simulated recording (kept with ``save``).
-
-    ``record`` is :func:`.sim_handeye.record_sim` (``target``: the arms) or :func:`.sim_handeye.record_sim_wrist`
-    (``target``: the camera).
-    """
+def _views(request: HandEyeRequest, arm: str, board: ChArUcoBoard | None, log: Log) -> tuple[Recording, str]:
+    """The views to solve and where they came from: the folder, or a new simulated recording (kept with ``save``)."""
     rig, name = request.rig, request.camera
     wrist = name != HEAD_VIEW
+    # The head camera records with the arms holding the board, a wrist camera with the arm carrying it.
+    record: Callable[..., Recording] = record_sim_wrist if wrist else record_sim
     if request.from_dir is not None:
         recording = Recording.load(request.from_dir)
         log(f"{len(recording.views)} recorded views in {request.from_dir}")
@@ -105,7 +101,7 @@ def _views(
     with _refusing_degenerate_motion():
         recording = record(
             rig,
-            target,
+            name if wrist else arm,
             board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
             poses=request.poses,
             seed=request.seed,
@@ -163,7 +159,7 @@ def _head(request: HandEyeRequest, log: Log) -> dict[str, Any]:
     if request.collect is not None and request.from_dir is None:  # a hardware rig: the robot moves the board
         request = replace(request, from_dir=request.collect(arms), save=None)
     board = _board(request)
-    recording, source = _views(request, record_sim, arm, board, log)
+    recording, source = _views(request, arm, board, log)
     board = board or recording.board
     missing = [a for a in arms if not recording.for_arm(a)]
     if missing:
@@ -222,7 +218,7 @@ def _wrist(request: HandEyeRequest, log: Log) -> dict[str, Any]:
     if request.arm is not None and request.arm != arm:
         raise ValueError(f"--arm {request.arm}: {name} is carried by the {arm} arm (rig config); drop --arm")
     board = _board(request)
-    recording, source = _views(request, record_sim_wrist, name, board, log)
+    recording, source = _views(request, arm, board, log)
     board = board or recording.board
     # "--name {name}" is printed literally (not an f-string), as this message always has been.
     advice = (
