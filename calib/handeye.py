@@ -1,24 +1,16 @@
-"""Eye-to-hand calibration of a fixed camera with a board held by a gripper: closed-form AX = XB and AX = ZB.
+"""Hand-eye building blocks: the motion check of either mount and the closed forms AX = XB and AX = ZB.
 
-Inputs, for each pose ``i`` (N >= 3):
+Inputs, for each pose ``i`` (N >= 3): ``G_i`` (4x4) forward kinematics (gripper-frame points → base frame,
+OpenCV's "gripper2base"; "gripper" is whatever frame FK ends in, flange or TCP; for a dual-arm rig pass
+rig-frame poses to get rig-frame results) and ``C_i = T_cam_board[i]`` (board-frame points → camera frame,
+``solvePnP``'s rvec/tvec, OpenCV's "target2cam"). How the two unknown constants enter depends on where the
+camera is (:class:`calib.handeye_mount.CameraMount`); :func:`calib.handeye_solve.solve_hand_eye` is the one
+entry that builds the equations below for either mount.
 
-* ``T_base_gripper[i]`` (4x4): forward kinematics, maps gripper-frame points into the robot base frame
-  (OpenCV's "gripper2base"). "Gripper" is whatever frame FK ends in (flange or TCP) -- the board only has
-  to be rigidly attached to it. For a dual-arm rig pass rig-frame poses to get the rig-frame camera.
-* ``T_cam_board[i]`` (4x4): maps board-frame points into the camera frame (``solvePnP``'s rvec/tvec,
-  OpenCV's "target2cam").
-
-Model: ``T_cam_board[i] = T_cam_base · T_base_gripper[i] · T_gripper_board`` with two unknown constants,
-``T_cam_base`` (maps base-frame points into the camera frame, as :class:`calib.camera_model.CameraModel`
-stores it) and ``T_gripper_board``.
-
-* **AX = XB** (``method="park"``, Park & Martin 1994): for pose pairs ``(i, j)``,
-  ``A = T_cam_board[j] T_cam_board[i]⁻¹`` and ``B = T_base_gripper[j] T_base_gripper[i]⁻¹`` satisfy
-  ``A X = X B`` with ``X = T_cam_base``. The rotation vectors obey ``α = R_X β``; ``R_X`` is the least-squares
-  rotation (Kabsch/SVD form of Park-Martin's ``(MᵀM)^(-1/2) Mᵀ``), then ``(R_A - I) t_X = R_X t_B - t_A``
-  is solved by linear least squares. ``T_gripper_board`` is averaged from the poses afterwards.
-* **AX = ZB** (``method="shah"``, Shah 2013): ``T_cam_board[i] X = Z T_base_gripper[i]`` with
-  ``X = T_gripper_board⁻¹`` and ``Z = T_cam_base``. The rotations satisfy the linear system
+* **AX = XB** (:func:`solve_ax_xb`, Park & Martin 1994): for relative motions ``A_k``, ``B_k``. The rotation
+  vectors obey ``α = R_X β``; ``R_X`` is the least-squares rotation (Kabsch/SVD form of Park-Martin's
+  ``(MᵀM)^(-1/2) Mᵀ``), then ``(R_A - I) t_X = R_X t_B - t_A`` is solved by linear least squares.
+* **AX = ZB** (:func:`solve_ax_zb`, Shah 2013): for absolute poses. The rotations satisfy the linear system
   ``(I ⊗ R_A) vec(R_X) = (R_Bᵀ ⊗ I) vec(R_Z)``, whose null vector (SVD) gives both rotations up to scale;
   they are rescaled to det 1 and projected onto SO(3); the translations follow from
   ``R_A t_X + t_A = R_Z t_B + t_Z`` by linear least squares.
@@ -26,8 +18,11 @@ stores it) and ``T_gripper_board``.
 Before solving, :func:`check_motion` refuses motion that cannot determine the answer, with
 :class:`DegenerateMotionError` naming the cause: fewer than 3 poses, a small rotation span (every
 method, and OpenCV's TSAI silently returns the identity, see shared/REFERENCES.md) or rotations about a
-single axis (the translation along that axis is then unobservable). Closed forms minimise algebraic
-errors; :mod:`calib.handeye_refine` then minimises the pixel reprojection error.
+single axis (the translation along that axis is then unobservable). For a wrist camera,
+:func:`check_eye_in_hand_motion` runs the same test on the TCP motion and names the motion to add
+(**pure translation**: "add rotations about two different axes"; a single axis: "add rotations about a
+second axis"). Closed forms minimise algebraic errors; :mod:`calib.handeye_refine` then minimises the
+pixel reprojection error.
 """
 
 from __future__ import annotations
@@ -40,17 +35,22 @@ from typing import Final, Literal
 import numpy as np
 import numpy.typing as npt
 
-from calib.rotations import as_transforms, nearest_rotation, pose_difference, rigid, rotation_angle, rotation_log
+from calib.handeye_mount import CameraMount
+from calib.rotations import as_transforms, nearest_rotation, rigid, rotation_angle, rotation_log
 from pilworld.geometry import invert_transform
 
 __all__ = [
+    "ADD_ROTATIONS",
+    "METHODS",
     "DegenerateMotionError",
-    "HandEyeResult",
+    "Method",
     "MotionReport",
+    "check_eye_in_hand_motion",
+    "check_hand_eye_motion",
     "check_motion",
+    "pose_pairs",
     "solve_ax_xb",
     "solve_ax_zb",
-    "solve_eye_to_hand",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -78,7 +78,8 @@ class MotionReport:
     axis_spread: float
 
 
-def _pairs(n: int) -> list[tuple[int, int]]:
+def pose_pairs(n: int) -> list[tuple[int, int]]:
+    """Every pair ``(i, j)``, ``i < j``, of ``n`` poses: the relative motions the checks and AX = XB use."""
     return [(i, j) for i in range(n) for j in range(i + 1, n)]
 
 
@@ -101,7 +102,7 @@ def check_motion(
             "rotation axes); record more poses"
         )
     angles, axes = [], []
-    for i, j in _pairs(n):
+    for i, j in pose_pairs(n):
         R = G[j, :3, :3] @ G[i, :3, :3].T
         theta = rotation_angle(R)
         angles.append(theta)
@@ -181,62 +182,82 @@ def solve_ax_zb(
     return rigid(R_X, t[:3]), rigid(R_Z, t[3:])
 
 
-@dataclass(frozen=True, eq=False)
-class HandEyeResult:
-    """An eye-to-hand solution and how well it explains the input poses."""
-
-    T_cam_base: FloatArray  #: maps base-frame points into the camera frame
-    T_gripper_board: FloatArray  #: maps board-frame points into the gripper frame
-    method: str
-    motion: MotionReport
-    #: per pose: (translation error in metres, rotation error in degrees) of T_cam_base G_i T_gripper_board
-    #: against the measured T_cam_board[i]
-    pose_residuals: tuple[tuple[float, float], ...]
-
-    @property
-    def residual_rms_m(self) -> float:
-        return math.sqrt(float(np.mean([t**2 for t, _ in self.pose_residuals])))
-
-    @property
-    def residual_rms_deg(self) -> float:
-        return math.sqrt(float(np.mean([r**2 for _, r in self.pose_residuals])))
+#: Advice appended to every refusal of a wrist camera's motion: what a user moves to fix it.
+ADD_ROTATIONS: Final = (
+    "add rotations about two different axes: tilt the wrist camera by 15-35° about two different axes (e.g. "
+    "the TCP's x and y axes), keeping the board in view"
+)
 
 
-def _average_pose(poses: FloatArray) -> FloatArray:
-    return rigid(nearest_rotation(poses[:, :3, :3].sum(axis=0)), poses[:, :3, 3].mean(axis=0))
-
-
-def solve_eye_to_hand(
-    T_base_gripper: Sequence[npt.ArrayLike] | npt.ArrayLike,
-    T_cam_board: Sequence[npt.ArrayLike] | npt.ArrayLike,
-    method: Method = "shah",
+def check_eye_in_hand_motion(
+    T_base_tcp: Sequence[npt.ArrayLike] | npt.ArrayLike,
+    min_poses: int = 3,
     min_rotation_span_deg: float = 5.0,
     min_axis_spread: float = 0.1,
-) -> HandEyeResult:
-    """Closed-form ``T_cam_base`` and ``T_gripper_board`` for a fixed camera and a board in the gripper.
+) -> MotionReport:
+    """:func:`check_motion` on the TCP motion, with messages for a wrist camera.
 
-    See the module docstring for the conventions. Raises :class:`DegenerateMotionError` for degenerate
-    motion and ``ValueError`` for mismatched or non-rigid inputs; never returns a silent identity.
+    The test runs on ``T_base_tcp[i]⁻¹`` so a single rotation axis is reported in the TCP frame, the frame
+    the user tilts the camera in. Raises :class:`DegenerateMotionError` whose message starts with the
+    cause (``pure translation``, ``too few poses``, ``rotations about a single axis``) and names the motion
+    to add.
     """
-    G = as_transforms(T_base_gripper, "T_base_gripper")
-    C = as_transforms(T_cam_board, "T_cam_board")
-    if G.shape[0] != C.shape[0]:
-        raise ValueError(
-            f"T_base_gripper and T_cam_board must pair up one to one, got {G.shape[0]} and {C.shape[0]} poses"
+    G = as_transforms(T_base_tcp, "T_base_tcp")
+    n = G.shape[0]
+    if n >= 2:
+        span = max(math.degrees(rotation_angle(G[j, :3, :3].T @ G[i, :3, :3])) for i, j in pose_pairs(n))
+        if span <= min_rotation_span_deg:
+            moved = max(float(np.linalg.norm(G[j, :3, 3] - G[i, :3, 3])) for i, j in pose_pairs(n))
+            raise DegenerateMotionError(
+                f"pure translation: the {n} TCP poses differ by at most {span:.2f}° in orientation (need more "
+                f"than {min_rotation_span_deg}°) while the TCP moves up to {moved * 1e3:.0f} mm; a sliding camera "
+                f"cannot determine its mount. Pure translation: {ADD_ROTATIONS}"
+            )
+    try:
+        return check_motion(
+            invert_transform(G),
+            min_poses=min_poses,
+            min_rotation_span_deg=min_rotation_span_deg,
+            min_axis_spread=min_axis_spread,
         )
-    if method not in METHODS:
-        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
-    motion = check_motion(G, min_rotation_span_deg=min_rotation_span_deg, min_axis_spread=min_axis_spread)
-    if method == "park":
-        pairs = _pairs(G.shape[0])
-        A = [C[j] @ invert_transform(C[i]) for i, j in pairs]
-        B = [G[j] @ invert_transform(G[i]) for i, j in pairs]
-        X = solve_ax_xb(A, B)
-        Y = _average_pose(
-            np.asarray([invert_transform(g) @ invert_transform(X) @ c for g, c in zip(G, C, strict=True)])
-        )
-    else:
-        X_bg, X = solve_ax_zb(C, G)
-        Y = invert_transform(X_bg)
-    residuals = tuple(pose_difference(X @ g @ Y, c) for g, c in zip(G, C, strict=True))
-    return HandEyeResult(T_cam_base=X, T_gripper_board=Y, method=method, motion=motion, pose_residuals=residuals)
+    except DegenerateMotionError as exc:
+        text = str(exc)
+        if text.startswith("too few poses"):
+            raise DegenerateMotionError(
+                f"too few poses: got {n}, need at least {max(min_poses, 3)} wrist-camera views of the board; "
+                f"record more poses and {ADD_ROTATIONS}"
+            ) from None
+        if text.startswith("rotations about a single axis"):
+            axes = _main_axis(G)
+            raise DegenerateMotionError(
+                "rotations about a single axis: every relative rotation of the TCP is about "
+                f"{np.round(axes, 3).tolist()} (TCP frame), so the camera's offset along that axis is unobservable; "
+                "add rotations about a second axis, perpendicular to it (tilt the wrist camera sideways as well "
+                f"as forwards; the relative rotation axes' spread is below min_axis_spread = {min_axis_spread})"
+            ) from None
+        raise DegenerateMotionError(f"{text}. For a wrist camera: {ADD_ROTATIONS}") from None
+
+
+def _main_axis(G: FloatArray) -> FloatArray:
+    axes = []
+    for i, j in pose_pairs(G.shape[0]):
+        R = G[i, :3, :3].T @ G[j, :3, :3]
+        if math.degrees(rotation_angle(R)) >= 1.0:
+            w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+            axes.append(w / max(float(np.linalg.norm(w)), 1e-300))
+    if not axes:
+        return np.zeros(3)
+    A = np.asarray(axes)
+    out: FloatArray = np.linalg.eigh(A.T @ A)[1][:, -1]
+    return out * (1.0 if out[np.argmax(np.abs(out))] > 0 else -1.0)
+
+
+def check_hand_eye_motion(
+    mount: CameraMount,
+    T_base_gripper: Sequence[npt.ArrayLike] | npt.ArrayLike,
+    min_rotation_span_deg: float = 5.0,
+    min_axis_spread: float = 0.1,
+) -> MotionReport:
+    """The motion check of ``mount``: :func:`check_motion` or, for a wrist camera, :func:`check_eye_in_hand_motion`."""
+    check = check_motion if mount is CameraMount.EYE_TO_HAND else check_eye_in_hand_motion
+    return check(T_base_gripper, min_rotation_span_deg=min_rotation_span_deg, min_axis_spread=min_axis_spread)

@@ -24,10 +24,11 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from calib.handeye_mount import CameraMount
 from calib.rotations import as_transforms, pose_difference, rigid
 from pilworld.geometry import invert_transform
 
-__all__ = ["OpenCvEstimate", "opencv_eye_to_hand"]
+__all__ = ["OpenCvEstimate", "opencv_eye_to_hand", "opencv_hand_eye"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -40,7 +41,7 @@ class OpenCvEstimate:
     """One OpenCV method's ``T_cam_base`` and how far it is from a reference solution."""
 
     method: str
-    T_cam_base: FloatArray
+    T_cam_base: FloatArray  #: of the fixed camera (for a wrist camera: ``T_cam_tcp``, see :func:`opencv_hand_eye`)
     translation_diff_m: float  #: |t - t_ref|, NaN without a reference
     rotation_diff_deg: float  #: angle of R R_refᵀ, NaN without a reference
 
@@ -94,4 +95,25 @@ def opencv_eye_to_hand(
             continue
         dt, dr = pose_difference(T, ref) if ref is not None else (float("nan"), float("nan"))
         out[name] = OpenCvEstimate(method=name, T_cam_base=T, translation_diff_m=dt, rotation_diff_deg=dr)
+    return out
+
+
+def opencv_hand_eye(
+    mount: CameraMount,
+    T_base_gripper: Sequence[npt.ArrayLike] | npt.ArrayLike,
+    T_cam_board: Sequence[npt.ArrayLike] | npt.ArrayLike,
+    reference_X: npt.ArrayLike,
+) -> dict[str, OpenCvEstimate]:
+    """OpenCV's estimates for ``mount``, each compared with ``reference_X`` on the mount's own transform ``X``.
+
+    A wrist camera is passed to :func:`opencv_eye_to_hand` as the equivalent fixed camera (FK inverted, see
+    :class:`calib.handeye_mount.CameraMount`); its estimate of ``T_cam_tcp`` is inverted to ``T_tcp_cam``
+    before the comparison.
+    """
+    G = as_transforms(T_base_gripper, mount.fk)
+    ref = np.asarray(reference_X, dtype=np.float64)
+    out = {}
+    for name, est in opencv_eye_to_hand(mount.fixed_camera(G), T_cam_board).items():
+        dt, dr = pose_difference(mount.fixed_camera(est.T_cam_base), ref)
+        out[name] = OpenCvEstimate(method=name, T_cam_base=est.T_cam_base, translation_diff_m=dt, rotation_diff_deg=dr)
     return out

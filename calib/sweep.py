@@ -18,7 +18,7 @@ down) and the A4 ChArUco board (7x5, 24 corners) rigidly held by a gripper with 
 3. **FK noise.** The gripper poses handed to the solvers are perturbed in the gripper frame by a rotation
    of ``N(0, σ)`` degrees about each axis and a translation of ``N(0, σ_rad · fk_lever_m)`` per axis, i.e. the
    displacement a joint error of ``σ`` causes at ``fk_lever_m`` (0.5 m: a UR5e's forearm) from the joint.
-4. **Methods.** ``park_martin`` (AX = XB) and ``shah`` (AX = ZB) from :mod:`calib.handeye` (with its
+4. **Methods.** ``park_martin`` (AX = XB) and ``shah`` (AX = ZB) :mod:`calib.handeye_solve` (with its
    motion check: degenerate motion raises :class:`~calib.handeye.DegenerateMotionError`), ``refined``
    (Shah, then the Huber LM of :mod:`calib.handeye_refine` on the noisy pixels) and, when the installed
    cv2 has them, ``opencv_<name>`` for OpenCV's TSAI, PARK, HORAUD, ANDREFF, DANIILIDIS (``calibrateHandEye``)
@@ -48,9 +48,9 @@ import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
-from calib.handeye import solve_eye_to_hand
 from calib.handeye_opencv import opencv_eye_to_hand
 from calib.handeye_refine import refine_eye_to_hand
+from calib.handeye_solve import solve_eye_to_hand
 from calib.rotations import pose_difference, rigid, rotation_exp
 from pilworld.geometry import invert_transform
 
@@ -596,10 +596,8 @@ def make_in_hand_trial(
 
 def solve_in_hand_trial(trial: EyeInHandTrial, methods: Sequence[str] = IN_HAND_METHODS) -> dict[str, TrialOutcome]:
     """Run the eye-in-hand methods on ``trial``; errors of ``T_tcp_cam`` against the truth."""
-    from calib.handeye_in_hand import (  # calib.handeye_in_hand imports nothing from here
-        refine_eye_in_hand,
-        solve_eye_in_hand,
-    )
+    from calib.handeye_refine import refine_eye_in_hand
+    from calib.handeye_solve import solve_eye_in_hand
 
     unknown = [m for m in methods if m not in IN_HAND_METHODS]
     if unknown:

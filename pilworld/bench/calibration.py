@@ -43,8 +43,8 @@ from tqdm import tqdm
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
-from calib.handeye import solve_eye_to_hand
 from calib.handeye_refine import refine_eye_to_hand
+from calib.handeye_solve import solve_eye_to_hand
 from calib.intrinsics import IntrinsicsOptions, calibrate_intrinsics
 from calib.rotations import pose_difference
 from calib.sweep import (
@@ -241,7 +241,7 @@ WRIST_CAMERAS: Final = ("cam_left_wrist", "cam_right_wrist")
 
 
 def _wrist_sim(rig_path: Path, camera: str, poses: int, seed: int, resolution: int) -> dict[str, Any]:
-    module = importlib.import_module("pilworld.calibration.wrist_sim")
+    module = importlib.import_module("pilworld.calibration.sim_handeye")
     from pilworld.config.rig import RigConfig
 
     result: dict[str, Any] = dict(
@@ -325,7 +325,7 @@ def wrist_figures(
 def wrist_degeneracy_checks() -> dict[str, Any]:
     """Pure translation and rotations about one axis must be refused, with a message naming the motion to add."""
     from calib.handeye import DegenerateMotionError
-    from calib.handeye_in_hand import solve_eye_in_hand
+    from calib.handeye_solve import solve_eye_in_hand
     from calib.rotations import rigid, rotation_exp
     from calib.sweep import T_BASE_BOARD, T_TCP_CAM
     from pilworld.geometry import invert_transform

@@ -1,13 +1,22 @@
-"""Checks of a head-camera calibration: FK-projected gripper points and board corners on held-out views.
+"""Checks of a calibrated camera on held-out views, for either camera mount: what ``pilworld calibrate check`` runs.
 
-* **Gripper points** (both arms' TCPs from FK of the measured state, ``DualArmKinematics.gripper_points``)
-  are projected with the calibrated model. On a simulated rig the true camera is known, so the pixel
-  error is exact; it is measured at the rig's image size (what the control video draws), e.g. 128×128.
-  On a real rig the overlay (a cross per gripper: left red, right blue, as in the control video) is for
-  a person to judge.
-* **Board corners**: with the board mount from the hand-eye report, the corners FK predicts are compared
-  with the detected ones: a held-out reprojection error of the whole chain (FK, mount, camera) that needs
-  no ground truth, reported at the image resolution and scaled to the rig's.
+Both compare what FK and the calibration predict with what the camera sees, view by view (docs/calibration.md,
+"4. Check" and "Wrist cameras (eye-in-hand)"); the overlays are drawn by :mod:`.check_overlay`.
+
+* **Head camera** (eye-to-hand, :func:`check_views`). *Gripper points*: both arms' TCPs from FK of the
+  measured state (``DualArmKinematics.gripper_points``) are projected with the calibrated model. On a
+  simulated rig the true camera is known, so the pixel error is exact; it is measured at the rig's image
+  size (what the control video draws), e.g. 128×128. On a real rig the overlay is for a person to judge.
+  *Board corners*: with the board mount from the hand-eye report, the corners FK predicts are compared with
+  the detected ones: a held-out reprojection error of the whole chain (FK, mount, camera) that needs no
+  ground truth, reported at the image resolution and scaled to the rig's.
+* **Wrist camera** (eye-in-hand, :func:`check_wrist_views`). The board lies fixed on the table at
+  ``T_rig_board``; the detected corners are compared with the corners projected through
+  ``T_cam_rig = T_cam_tcp · FK(measured joints)⁻¹`` with ``T_cam_tcp`` and the intrinsics of the camera
+  under test (the rig config's ``wrist_cameras.<name>.file``). It needs no ground truth either, so it is
+  what a real rig reports too; measured at the images' resolution and scaled to the rig's image size.
+  Held-out views come from the simulated rig (:func:`pilworld.calibration.sim_handeye.record_wrist_check_sim`)
+  or from a recorded folder, with ``T_rig_board`` from the calibration report.
 """
 
 from __future__ import annotations
@@ -17,23 +26,24 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector
+from pilworld.calibration.board_views import check_image_size
+from pilworld.calibration.check_overlay import draw_overlay, draw_wrist_overlay
 from pilworld.calibration.recording import RecordedView
 from pilworld.config.rig import RigConfig, letterbox
-from pilworld.types import ARM_SIDES
+from pilworld.geometry import invert_transform
+from pilworld.kinematics.dual_arm import DualArmKinematics
+from pilworld.types import ARM_LAYOUT, ARM_SIDES
 
-__all__ = ["CheckResult", "check_views", "draw_overlay", "gripper_reprojection_errors"]
+__all__ = ["CheckResult", "WristCheckResult", "check_views", "check_wrist_views", "gripper_reprojection_errors"]
 
 FloatArray = npt.NDArray[np.float64]
 UInt8Array = npt.NDArray[np.uint8]
-
-ARM_COLORS_RGB = {"left": (230, 40, 40), "right": (40, 90, 230)}  # the control video's colours
 
 
 def gripper_reprojection_errors(
@@ -51,36 +61,16 @@ def gripper_reprojection_errors(
     return {side: err[:, k][visible[:, k]] for k, side in enumerate(ARM_SIDES)}
 
 
-def draw_overlay(
-    image: UInt8Array,
-    uv: FloatArray,
-    visible: npt.NDArray[np.bool_],
-    uv_true: FloatArray | None = None,
-    board_uv: FloatArray | None = None,
-) -> UInt8Array:
-    """``image`` (RGB) with a cross per gripper at ``uv`` ``(2, 2)``, a circle at the truth and board dots."""
-    out = np.ascontiguousarray(image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)).copy()
-    size = max(4, round(min(out.shape[:2]) / 40))
-    thick = max(1, round(min(out.shape[:2]) / 400))
-    shift = 4
-    for k, side in enumerate(ARM_SIDES):
-        if not visible[k]:
-            continue
-        color = ARM_COLORS_RGB[side]
-        c = np.round(uv[k] * (1 << shift)).astype(int)
-        for d in ((size, size), (size, -size)):
-            a = (int(c[0] - d[0] * (1 << shift)), int(c[1] - d[1] * (1 << shift)))
-            b = (int(c[0] + d[0] * (1 << shift)), int(c[1] + d[1] * (1 << shift)))
-            cv2.line(out, a, b, color, thick, cv2.LINE_AA, shift)
-        if uv_true is not None:
-            t = np.round(uv_true[k] * (1 << shift)).astype(int)
-            cv2.circle(out, (int(t[0]), int(t[1])), size * (1 << shift), (40, 200, 40), thick, cv2.LINE_AA, shift)
-    if board_uv is not None:
-        for p in np.round(board_uv * (1 << shift)).astype(int):
-            cv2.circle(
-                out, (int(p[0]), int(p[1])), max(1, size // 3) * (1 << shift), (250, 200, 0), -1, cv2.LINE_AA, shift
-            )
-    return out
+def _stats(err: FloatArray, scale: float) -> dict[str, Any]:
+    rms = math.sqrt(float(np.mean(err**2)))
+    mx = float(err.max())
+    return {
+        "corners": int(err.size),
+        "rms_px": rms,
+        "max_px": mx,
+        "rms_px_at_rig_size": rms * scale,
+        "max_px_at_rig_size": mx * scale,
+    }
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,11 +147,7 @@ def check_views(
     overlays: dict[str, UInt8Array] = {}
     size = (camera.width, camera.height)
     for view in views:
-        if view.image_size != size:
-            raise ValueError(
-                f"view {view.name!r}: image is {view.image_size[0]}x{view.image_size[1]} but the camera model is "
-                f"{size[0]}x{size[1]}"
-            )
+        check_image_size(view, camera)
         points = rig.kinematics.gripper_points(view.state)  # (2, 3)
         uv, vis = camera.project(points)
         uv_true = true_full.project(points)[0] if true_full is not None else None
@@ -183,4 +169,125 @@ def check_views(
         gripper_err_px={s: np.concatenate(v) if v else np.zeros(0) for s, v in grip.items()},
         board_err_px={s: np.concatenate(v) if v else np.zeros(0) for s, v in board_err.items()},
         overlays=overlays,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class WristCheckResult:
+    """Per-view corner errors of one wrist camera and the overlay images."""
+
+    camera: str
+    arm: str
+    image_size: tuple[int, int]  #: of the checked images (the calibration resolution)
+    rig_size: tuple[int, int]  #: the rig's image size
+    errors_px: dict[str, FloatArray]  #: per view name, FK-predicted minus detected corner distances at image size
+    skipped: dict[str, str] = field(default_factory=dict)  #: view name → why it was not checked
+    overlays: dict[str, UInt8Array] = field(default_factory=dict, repr=False)  #: per view name, RGB
+
+    @property
+    def scale(self) -> float:
+        """Image pixels → rig pixels (the letterbox scale)."""
+        return min(self.rig_size[0] / self.image_size[0], self.rig_size[1] / self.image_size[1])
+
+    @property
+    def all_errors_px(self) -> FloatArray:
+        return np.concatenate(list(self.errors_px.values())) if self.errors_px else np.zeros(0)
+
+    def to_dict(self) -> dict[str, Any]:
+        s = self.scale
+        out: dict[str, Any] = {
+            "camera": self.camera,
+            "arm": self.arm,
+            "image_size": list(self.image_size),
+            "rig_image_size": list(self.rig_size),
+            "views_checked": len(self.errors_px),
+            "views": {name: _stats(e, s) for name, e in self.errors_px.items()},
+            "skipped": dict(self.skipped),
+        }
+        every = self.all_errors_px
+        if every.size:
+            out["overall"] = _stats(every, s)
+            out["worst_view_rms_px_at_rig_size"] = max(v["rms_px_at_rig_size"] for v in out["views"].values())
+        return out
+
+    def lines(self) -> list[str]:
+        d = self.to_dict()
+        (w, h), (rw, rh) = self.image_size, self.rig_size
+        rows = [
+            f"  {name}: {v['corners']} corners, RMS {v['rms_px']:.3f} px, max {v['max_px']:.3f} px at {w}x{h} "
+            f"= RMS {v['rms_px_at_rig_size']:.4f} px, max {v['max_px_at_rig_size']:.4f} px at {rw}x{rh}"
+            for name, v in d["views"].items()
+        ]
+        rows += [f"  {name}: skipped ({why})" for name, why in self.skipped.items()]
+        if "overall" in d:
+            o = d["overall"]
+            rows.append(
+                f"{self.camera} ({self.arm} arm): board corners by FK over {d['views_checked']} views "
+                f"({o['corners']} corners): RMS {o['rms_px']:.3f} px, max {o['max_px']:.3f} px at {w}x{h} = "
+                f"RMS {o['rms_px_at_rig_size']:.4f} px, max {o['max_px_at_rig_size']:.4f} px at {rw}x{rh}"
+            )
+        else:
+            rows.append(f"{self.camera} ({self.arm} arm): no view showed the board; nothing to compare")
+        return rows
+
+
+def check_wrist_views(
+    views: Sequence[RecordedView],
+    camera: CameraModel,
+    board: ChArUcoBoard,
+    kinematics: DualArmKinematics,
+    arm: str,
+    T_rig_board: npt.ArrayLike,
+    *,
+    rig_size: tuple[int, int],
+    name: str | None = None,
+    overlays: bool = True,
+) -> WristCheckResult:
+    """Compare detected corners with those FK · ``T_tcp_cam`` · ``T_rig_board`` predicts, view by view.
+
+    ``camera`` is the wrist camera under test at the images' resolution, ``T_cam_base = T_cam_tcp``
+    (the ``wrist_cameras.<name>.file`` convention); only ``arm``'s views are checked. ``T_rig_board`` maps
+    board-frame points into the rig frame.
+    """
+    cam_name = name or camera.name
+    mine = [v for v in views if v.arm == arm]
+    if not mine:
+        raise ValueError(f"{cam_name}: no views with the {arm} arm (the arm carrying the camera)")
+    size = (camera.width, camera.height)
+    T_board = np.asarray(T_rig_board, dtype=np.float64).reshape(4, 4)
+    T_cam_tcp = np.asarray(camera.T_cam_base, dtype=np.float64)
+    mount = getattr(kinematics, arm)
+    corners_rig = board.corner_points() @ T_board[:3, :3].T + T_board[:3, 3]
+    detector = BoardDetector(board)
+    errors: dict[str, FloatArray] = {}
+    skipped: dict[str, str] = {}
+    images: dict[str, UInt8Array] = {}
+    for view in mine:
+        check_image_size(view, camera)
+        T_rig_tcp = mount.tcp_pose(view.state[ARM_LAYOUT[arm][0]])
+        posed = camera.with_pose(T_cam_tcp @ invert_transform(T_rig_tcp))
+        detection = detector.detect(view.gray(), name=view.name)
+        if not detection.n_corners:
+            skipped[view.name] = "no board corners detected"
+            if overlays:
+                images[view.name] = draw_wrist_overlay(view.image, np.zeros((0, 2)), np.zeros((0, 2)), "no board")
+            continue
+        uv, visible = posed.project(corners_rig[detection.corner_ids])
+        if not np.all(visible):
+            skipped[view.name] = "the predicted board lies behind the camera"
+            continue
+        err = np.linalg.norm(uv - detection.corners, axis=1)
+        errors[view.name] = err
+        if overlays:
+            rms = math.sqrt(float(np.mean(err**2)))
+            label = f"{view.name}: RMS {rms:.2f} px, max {float(err.max()):.2f} px at {size[0]}x{size[1]}"
+            images[view.name] = draw_wrist_overlay(view.image, detection.corners, uv, label)
+    return WristCheckResult(
+        camera=cam_name,
+        arm=arm,
+        image_size=size,
+        rig_size=rig_size,
+        errors_px=errors,
+        skipped=skipped,
+        overlays=images,
     )

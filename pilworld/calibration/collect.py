@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from hw_drivers.robot import Robot
-from pilworld.calibration.planner import PosePlan
+from pilworld.calibration.plan import PosePlan
 from pilworld.calibration.recording import RecordedView
 from pilworld.types import ARM_LAYOUT, STATE_DIM
 

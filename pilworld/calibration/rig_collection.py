@@ -31,7 +31,7 @@ import numpy.typing as npt
 from calib.board import ChArUcoBoard
 from hw_drivers.errors import RobotError, SafetyViolationError
 from hw_drivers.safety import SafetyFilter
-from pilworld.calibration.planner import PosePlan
+from pilworld.calibration.plan import PosePlan
 from pilworld.calibration.recording import POSES_FILE, RECORDING_FORMAT, RecordedView, board_to_dict
 from pilworld.calibration.rig_devices import CollectionStoppedError, RigRobot
 from pilworld.calibration.rig_motion import MoveSettings, move_duration, paced_move, path_problem

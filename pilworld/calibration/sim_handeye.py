@@ -1,52 +1,75 @@
-"""Hand-eye calibration on the simulated rig, where the answer is known: the acceptance run and its pieces.
+"""Hand-eye calibration on the simulated rig, where the answer is known: recordings and the acceptance runs.
 
-The simulated head camera renders board images at a calibration resolution (``resolution`` pixels wide,
-the same field of view as the rig's camera, so the intrinsics scale exactly); a :class:`BoardMount`
-puts the board on the calibrating arm's TCP; the planner, the collector and the solver are the ones a
-real rig uses. Ground truth: ``T_cam_base`` from ``rig.head_camera_model`` and ``T_tcp_board`` from
-the mount. :func:`run_sim_handeye` is what ``pilworld bench`` calls.
+Both camera mounts run the same steps a real rig does: the planner (:mod:`.plan`), the collector
+(:func:`pilworld.calibration.collect.collect_views`, through the ``Robot`` contract) and the solver
+(:mod:`.solve`), with the simulator rendering the views at a calibration resolution (``resolution``
+pixels wide, the rig's field of view, so the intrinsics scale exactly, :mod:`.sim_cameras`):
+
+* **head camera** (eye-to-hand, :func:`record_sim`): a :class:`simrig.board_mount.BoardMount` puts the
+  board on the calibrating arm's TCP (one arm at a time, as an operator would move it);
+* **wrist camera** (eye-in-hand, :func:`record_sim_wrist`): a :class:`simrig.table_board.TableBoard` lies
+  flat on the table beside the tasks' objects, which are moved to the far edge of the table so they never
+  cover it.
+
+Ground truth (:mod:`.sim_truth`) comes from the rig config and the board's placement.
+:func:`run_sim_handeye` and :func:`run_sim_wrist` are what ``pilworld bench calibration`` calls
+(docs/calibration.md, "Measured on the simulated rig" and "Wrist cameras (eye-in-hand)").
 """
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Final
+from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
-from calib.rotations import pose_difference
-from pilworld.calibration.check import gripper_reprojection_errors
 from pilworld.calibration.collect import collect_views
-from pilworld.calibration.planner import PlannerSettings, plan_board_poses
+from pilworld.calibration.plan import (
+    PlannerSettings,
+    PosePlan,
+    WristPlannerSettings,
+    plan_board_poses,
+    plan_wrist_poses,
+)
 from pilworld.calibration.recording import RecordedView, Recording, SimTruth
-from pilworld.calibration.solve import HandEyeOutcome, solve_recording
+from pilworld.calibration.sim_cameras import sim_calibration_camera, sim_wrist_camera, wrist_arm
+from pilworld.calibration.sim_truth import TRUTH_KEY, WristTruth, truth_errors, wrist_truth_errors
+from pilworld.calibration.solve import calibrate_wrist
+from pilworld.calibration.solve_arms import solve_recording
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_SIDES, HEAD_VIEW
 from simrig.board_mount import BoardMount
 from simrig.poses import HOME_Q14
 from simrig.robot import SimRobot
+from simrig.table_board import TableBoard
+from simrig.tasks import ObjectPose
 
 __all__ = [
     "DEFAULT_BOARD",
+    "HELD_OUT_SEED_OFFSET",
     "arms_for",
     "held_out_states",
     "record_sim",
+    "record_sim_wrist",
+    "record_wrist_check_sim",
     "run_sim_handeye",
-    "sim_calibration_camera",
-    "truth_errors",
+    "run_sim_wrist",
 ]
 
 FloatArray = npt.NDArray[np.float64]
+Log = Callable[[str], None] | None
 
 DEFAULT_BOARD: Final = Path(__file__).resolve().parents[2] / "configs" / "board" / "charuco_7x5_a4.yaml"
 #: The held-out planner seed is the calibration seed plus this, so held-out poses never repeat calibration ones.
 HELD_OUT_SEED_OFFSET: Final = 1000
+#: Where the tasks' objects are parked during a wrist calibration: the far edge of the table.
+_PARKED_X: Final = 0.42
+_PARKED_YS: Final = (-0.12, 0.0, 0.12, -0.24, 0.24)
 
 
 def arms_for(arm: str) -> tuple[str, ...]:
@@ -58,20 +81,23 @@ def arms_for(arm: str) -> tuple[str, ...]:
     return (arm,)
 
 
-def sim_calibration_camera(rig: RigConfig, resolution: int) -> CameraModel:
-    """The simulated head camera rendered ``resolution`` pixels wide with the same field of view (true intrinsics).
+def _collect(
+    robot: SimRobot,
+    plan_from: Callable[[FloatArray], PosePlan],
+    describe: Callable[[PosePlan], str],
+    view: str,
+    camera: CameraModel,
+    log: Log,
+) -> list[RecordedView]:
+    """Plan from the robot's state, say what was planned, then visit the poses rendering ``view`` as ``camera``."""
+    plan = plan_from(np.asarray(robot.observe().state, dtype=np.float64))
+    if log is not None:
+        log(describe(plan))
 
-    MuJoCo's ``fovy`` spans the image height and pixels are square, so ``f`` scales with the height and
-    the principal point stays at the image centre.
-    """
-    if isinstance(resolution, bool) or not isinstance(resolution, int) or not 16 <= resolution <= 8192:
-        raise ValueError(f"resolution: expected an image width in pixels, 16..8192, got {resolution!r}")
-    cam = rig.head_camera_model
-    width = resolution
-    height = round(resolution * cam.height / cam.width)
-    f = float(cam.K[1, 1]) * height / cam.height
-    K = np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
-    return CameraModel(K=K, dist=np.zeros(0), T_cam_base=cam.T_cam_base, width=width, height=height, name=cam.name)
+    def capture() -> npt.NDArray[np.uint8]:
+        return robot.render(view, camera.width, camera.height)
+
+    return collect_views(robot, plan, capture, log=log)
 
 
 def record_sim(
@@ -83,15 +109,15 @@ def record_sim(
     seed: int = 0,
     resolution: int = 1024,
     settings: PlannerSettings | None = None,
-    log: Callable[[str], None] | None = None,
+    log: Log = None,
     for_calibration: bool = True,
 ) -> Recording:
-    """Plan, move the simulated rig and render board views with ``arm`` (left, right or both).
+    """Head camera: plan, move the simulated rig and render board views with ``arm`` (left, right or both).
 
-    With both arms the board is mounted on one arm at a time (a second simulator instance), as an operator
-    would move it. The recording's camera holds the true intrinsics at the calibration resolution (with an
-    identity ``T_cam_base``: that is what is being calibrated) and its truth the camera pose and mounts.
-    ``for_calibration=False`` (held-out views for a check) lets the planner skip its motion test.
+    With both arms the board is mounted on one arm at a time (a second simulator instance). The recording's
+    camera holds the true intrinsics at the calibration resolution (with an identity ``T_cam_base``: that
+    is what is being calibrated) and its truth the camera pose and mounts. ``for_calibration=False``
+    (held-out views for a check) lets the planner skip its motion test.
     """
     board = board or ChArUcoBoard.from_yaml(DEFAULT_BOARD)
     camera = sim_calibration_camera(rig, resolution)
@@ -101,26 +127,15 @@ def record_sim(
     for side in arms_for(arm):
         mount = BoardMount.beside_tcp(board, side)
         mounts[side] = np.asarray(mount.T_tcp_board)
-        with SimRobot(rig, board_mount=mount) as robot:
-            state = np.asarray(robot.observe().state, dtype=np.float64)
-            plan = plan_board_poses(
-                rig.kinematics,
-                camera,
-                board,
-                mount.T_tcp_board,
-                side,
-                state,
-                settings,
-                seed,
+
+        def plan_from(state: FloatArray, side: str = side, mount: BoardMount = mount) -> PosePlan:
+            return plan_board_poses(
+                rig.kinematics, camera, board, mount.T_tcp_board, side, state, settings, seed,
                 for_calibration=for_calibration,
-            )
-            if log is not None:
-                log(plan.summary())
+            )  # fmt: skip
 
-            def capture(robot: SimRobot = robot) -> npt.NDArray[np.uint8]:
-                return robot.render(HEAD_VIEW, camera.width, camera.height)
-
-            views += collect_views(robot, plan, capture, log=log)
+        with SimRobot(rig, board_mount=mount) as robot:
+            views += _collect(robot, plan_from, PosePlan.summary, HEAD_VIEW, camera, log)
     return Recording(
         rig=rig.name,
         board=board,
@@ -131,8 +146,107 @@ def record_sim(
     )
 
 
+def _park_objects(robot: SimRobot) -> None:
+    poses = robot.object_poses()
+    parked = {}
+    for k, (name, pose) in enumerate(poses.items()):
+        y = _PARKED_YS[k % len(_PARKED_YS)]
+        parked[name] = ObjectPose((_PARKED_X, y, pose.xyz[2]), pose.quat)
+    robot.set_object_poses(parked)
+
+
+def record_sim_wrist(
+    rig: RigConfig,
+    camera: str,
+    *,
+    board: ChArUcoBoard | None = None,
+    poses: int = 20,
+    seed: int = 0,
+    resolution: int = 1024,
+    settings: WristPlannerSettings | None = None,
+    log: Log = None,
+    for_calibration: bool = True,
+) -> Recording:
+    """Wrist camera: plan, move the simulated rig and render ``camera``'s views of a board on the table.
+
+    The recording's camera holds the true intrinsics at the calibration resolution (with an identity
+    ``T_cam_base``: that is what is being calibrated); its ``extra`` holds the camera's name and the truth
+    (:data:`TRUTH_KEY`). ``for_calibration=False`` (held-out views for a check) skips the planner's motion
+    test and labels the recording ``eye_in_hand_check``.
+    """
+    board = board or ChArUcoBoard.from_yaml(DEFAULT_BOARD)
+    arm = wrist_arm(rig, camera)
+    cam = sim_wrist_camera(rig, camera, resolution)
+    settings = settings or WristPlannerSettings(poses=poses)
+    table = TableBoard.for_arm(board, arm)
+    gripper = getattr(rig.arms, arm).gripper.max_opening_m
+
+    def plan_from(state: FloatArray) -> PosePlan:
+        return plan_wrist_poses(
+            rig.kinematics, cam, board, table.T_rig_board, arm, state, settings, seed, max_opening_m=gripper,
+            for_calibration=for_calibration,
+        )  # fmt: skip
+
+    def describe(plan: PosePlan) -> str:
+        if not for_calibration:
+            return f"{camera} ({arm} arm): {len(plan.poses)} held-out camera poses (planner seed {seed})"
+        motion = plan.motion
+        spans = "" if motion is None else f"; rotation span {motion.rotation_span_deg:.1f}°, axis spread "
+        spans += "" if motion is None else f"{motion.axis_spread:.2f}"
+        return f"{camera} ({arm} arm): {len(plan.poses)} camera poses chosen from {plan.feasible} feasible{spans}"
+
+    with SimRobot(rig, table_board=table) as robot:
+        _park_objects(robot)
+        views = _collect(robot, plan_from, describe, camera, cam, log)
+    truth = WristTruth(
+        camera=camera, T_tcp_cam=rig.wrist_cameras[camera].pose_in_tcp.matrix(), T_rig_board=table.T_rig_board
+    )
+    return Recording(
+        rig=rig.name,
+        board=board,
+        views=tuple(views),
+        camera=cam.with_pose(np.eye(4)),
+        truth=None,
+        extra={
+            "source": "simulated rig",
+            "calibration": "eye_in_hand" if for_calibration else "eye_in_hand_check",
+            "camera": camera,
+            "seed": seed,
+            "resolution": resolution,
+            TRUTH_KEY: truth.to_dict(),
+        },
+    )
+
+
+def record_wrist_check_sim(
+    rig: RigConfig,
+    camera: str,
+    *,
+    board: ChArUcoBoard | None = None,
+    poses: int = 6,
+    seed: int = 0,
+    resolution: int = 1024,
+    log: Log = None,
+) -> tuple[Recording, FloatArray]:
+    """Held-out wrist-camera views of the table board on the simulated rig; returns them and ``T_rig_board``.
+
+    ``seed`` is the calibration's: the planner runs with ``seed + HELD_OUT_SEED_OFFSET``. It plans with the
+    camera's designed mount (so a wrong calibration is checked on the same views as a good one) and skips
+    the motion test (these views calibrate nothing). The rendering is the true camera at ``resolution``
+    pixels wide; the recording carries the truth like :func:`record_sim_wrist`.
+    """
+    if isinstance(poses, bool) or not isinstance(poses, int) or poses < 1:
+        raise ValueError(f"--poses: expected a number of camera poses >= 1, got {poses!r}")
+    board = board or ChArUcoBoard.from_yaml(DEFAULT_BOARD)
+    recording = record_sim_wrist(
+        rig, camera, board=board, poses=poses, seed=seed + HELD_OUT_SEED_OFFSET, resolution=resolution, log=log,
+        for_calibration=False,
+    )  # fmt: skip
+    return recording, np.array(TableBoard.for_arm(board, wrist_arm(rig, camera)).T_rig_board, dtype=np.float64)
+
+
 def held_out_states(rig: RigConfig, arms: Sequence[str], board: ChArUcoBoard, seed: int, poses: int = 20) -> FloatArray:
-    """``(N, 14)`` joint states of board poses planned with another seed (the other arm at home)."""
+    """``(N, 14)`` joint states of head-camera board poses planned with another seed (the other arm at home)."""
     states = [HOME_Q14[None]]
     for side in arms:
         mount = BoardMount.beside_tcp(board, side)
@@ -149,29 +263,6 @@ def held_out_states(rig: RigConfig, arms: Sequence[str], board: ChArUcoBoard, se
         )
         states.append(plan.states(HOME_Q14))
     return np.concatenate(states)
-
-
-def truth_errors(rig: RigConfig, outcome: HandEyeOutcome, truth: SimTruth, states: npt.ArrayLike) -> dict[str, Any]:
-    """True errors of a simulated calibration: camera pose, board mounts and gripper points at the rig's size."""
-    dt, dr = pose_difference(outcome.T_cam_base, truth.T_cam_base)
-    small = rig.head_camera_model  # the true camera at the rig's image size
-    errs = gripper_reprojection_errors(rig, small, outcome.T_cam_base, states)
-    every = np.concatenate(list(errs.values()))
-    out: dict[str, Any] = {
-        "translation_err_mm": dt * 1e3,
-        "rotation_err_deg": dr,
-        "gripper_reproj_err_px": float(every.max()) if every.size else math.nan,
-        "gripper_reproj_mean_px": float(every.mean()) if every.size else math.nan,
-        "gripper_points": int(every.size),
-        "gripper_image_size": [small.width, small.height],
-        "gripper_reproj_err_px_per_arm": {s: float(e.max()) if e.size else math.nan for s, e in errs.items()},
-        "board_mount_err": {},
-    }
-    for side, T in outcome.T_tcp_board.items():
-        if side in truth.T_tcp_board:
-            mt, mr = pose_difference(T, truth.T_tcp_board[side])
-            out["board_mount_err"][side] = {"translation_mm": mt * 1e3, "rotation_deg": mr}
-    return out
 
 
 def run_sim_handeye(
@@ -205,3 +296,36 @@ def run_sim_handeye(
         out["disagreement_deg"] = outcome.both.disagreement_deg
     out["seconds"] = time.perf_counter() - t0
     return out
+
+
+def run_sim_wrist(
+    rig: RigConfig, camera: str, *, poses: int = 20, seed: int = 0, resolution: int = 1024
+) -> dict[str, float]:
+    """Calibrate the simulated rig's wrist camera ``camera`` and compare with the truth.
+
+    Returns ``wrist_trans_err_mm``, ``wrist_rot_err_deg``, ``board_reproj_err_px`` (rig image size),
+    ``sigma_translation_mm``, ``sigma_rotation_deg`` (the refinement's own uncertainty),
+    ``rotation_span_deg``, ``axis_spread``, ``poses`` (views used), ``residual_rms_px`` (at
+    ``resolution``) and ``seconds``.
+    """
+    t0 = time.perf_counter()
+    board = ChArUcoBoard.from_yaml(DEFAULT_BOARD)
+    recording = record_sim_wrist(rig, camera, board=board, poses=poses, seed=seed, resolution=resolution)
+    assert recording.camera is not None  # record_sim_wrist sets it
+    truth = WristTruth.from_extra(recording.extra)
+    assert truth is not None
+    result = calibrate_wrist(recording.views, recording.camera, board, rig.kinematics, wrist_arm(rig, camera), camera)
+    errors = wrist_truth_errors(rig, result, truth)
+    u = result.refined.uncertainty()
+    return {
+        "wrist_trans_err_mm": float(errors["translation_err_mm"]),
+        "wrist_rot_err_deg": float(errors["rotation_err_deg"]),
+        "board_reproj_err_px": float(errors["board_reproj_err_px"]),
+        "sigma_translation_mm": float(u["sigma_translation_mm"]),
+        "sigma_rotation_deg": float(u["sigma_rotation_deg"]),
+        "rotation_span_deg": result.motion.rotation_span_deg,
+        "axis_spread": result.motion.axis_spread,
+        "poses": float(len(result.used)),
+        "residual_rms_px": result.residual_rms_px,
+        "seconds": time.perf_counter() - t0,
+    }

@@ -18,7 +18,10 @@ Degenerate motion exits with ``pilworld: error: hand-eye: degenerate motion: <ar
 ``check`` projects the FK gripper points (and, with the hand-eye report, the board corners) on held-out
 views (``--images DIR`` or new simulated poses), prints the pixel error per arm and writes overlays. With
 ``--camera cam_left_wrist`` it checks a wrist camera eye-in-hand: the board corners FK · ``T_tcp_cam`` ·
-``T_rig_board`` predicts against the detected ones, per view (``pilworld.calibration.wrist_check``).
+``T_rig_board`` predicts against the detected ones, per view.
+
+The hand-eye and check work is done by :mod:`pilworld.calibration.run_handeye` and
+:mod:`pilworld.calibration.run_check`; this module parses the flags, calls them and prints.
 See docs/calibration.md. Live capture from a real camera (``--camera SOURCE``) is not implemented yet.
 """
 
@@ -39,7 +42,6 @@ import numpy as np
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.detect import BoardDetector, Detection
-from calib.handeye import DegenerateMotionError
 from calib.intrinsics import IntrinsicsOptions, IntrinsicsResult, calibrate_intrinsics
 from calib.pdf import page_size_points
 from pilworld.config.rig import RigConfig
@@ -308,305 +310,90 @@ def _solve_intrinsics(args: argparse.Namespace, folder: Path, name: str) -> tupl
     return result.camera, {"out": str(args.out), "warnings": messages, **result.to_dict()}
 
 
-# ---------------------------------------------------------------------- handeye
-
-
-def _recording(
-    args: argparse.Namespace, poses_noun: str, collecting: str, record: Callable[[], Recording]
-) -> tuple[Recording, str]:
-    """The views to solve: the ``--from`` folder, or a new simulated recording (saved with ``--save``)."""
-    from pilworld.calibration.recording import Recording
-
-    if args.from_dir is not None:
-        recording = Recording.load(args.from_dir)
-        print(f"{len(recording.views)} recorded views in {args.from_dir}")
-        return recording, str(args.from_dir)
-    if args.poses < 1:
-        raise ValueError(f"--poses: expected a number of {poses_noun} >= 1, got {args.poses}")
-    print(collecting)
-    try:
-        recording = record()
-    except DegenerateMotionError as exc:
-        raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
-    if args.save is not None:
-        print(f"saved the views to {recording.save(args.save).parent}")
-    return recording, "simulated rig"
+# ---------------------------------------------------------------------- handeye and check
 
 
 def _handeye(args: argparse.Namespace) -> int:
     # Imported here: the simulator (MuJoCo, GL) is only needed by these two commands.
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, held_out_states, record_sim, truth_errors
-    from pilworld.calibration.solve import solve_recording
+    from pilworld.calibration.run_handeye import HandEyeRequest, run_handeye
 
     start = time.perf_counter()
     rig = RigConfig.load(args.rig)
-    if args.camera != HEAD_VIEW:
-        if rig.hardware is not None and args.from_dir is None:
-            raise ValueError(
-                f"--camera {args.camera}: robot-driven wrist-camera calibration on a hardware rig is not supported "
-                "yet; record the folder (docs/calibration.md) and pass --from"
-            )
-        return _handeye_wrist(args, rig, start)
-    if args.write_rig is not None:
-        raise ValueError("--write-rig: only for a wrist camera (--camera NAME); set head_camera.file by hand")
-    args.arm = args.arm or "left"
-    arms = arms_for(args.arm)
-    if rig.hardware is not None and args.from_dir is None:
-        # A hardware rig: the robot moves the board through the planned poses (calibrate_rig), then the
-        # recorded folder is solved as any --from folder is.
+    request = HandEyeRequest(
+        rig_path=args.rig,
+        rig=rig,
+        out=args.out,
+        camera=args.camera,
+        arm=args.arm,
+        report=args.report,
+        from_dir=args.from_dir,
+        camera_model=args.camera_model,
+        board=args.board,
+        save=args.save,
+        poses=args.poses,
+        seed=args.seed,
+        resolution=args.resolution,
+        write_rig=args.write_rig,
+        collect=_handeye_collector(args) if rig.hardware is not None else None,
+        started=start,
+    )
+    report = run_handeye(request, log=print)
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def _handeye_collector(args: argparse.Namespace) -> Callable[[tuple[str, ...]], Path]:
+    """A hardware rig: the robot moves the board through the planned poses into a folder (calibrate_rig)."""
+
+    def collect(arms: tuple[str, ...]) -> Path:
+        from pilworld.calibration.sim_handeye import DEFAULT_BOARD
         from pilworld.cli.calibrate_rig import collect_views_on_rig
 
         args.board_file = args.board or DEFAULT_BOARD
-        folder = args.save or args.out.with_name(args.out.stem + "_views")
+        folder: Path = args.save or args.out.with_name(args.out.stem + "_views")
         if args.poses < 3:
             raise ValueError(f"--poses: a hand-eye calibration needs at least 3 board poses per arm, got {args.poses}")
         collect_views_on_rig(args, "handeye", folder, arms, args.seed, for_calibration=True)
-        args.from_dir, args.save = folder, None
-    board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
-    recording, source = _recording(
-        args,
-        "board poses",
-        f"collecting board views on the simulated rig {rig.name!r} ({args.resolution} px wide)",
-        lambda: record_sim(
-            rig,
-            args.arm,
-            board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
-            poses=args.poses,
-            seed=args.seed,
-            resolution=args.resolution,
-            log=print,
-        ),
-    )
-    board = board or recording.board
-    missing = [a for a in arms if not recording.for_arm(a)]
-    if missing:
-        raise ValueError(f"--arm {args.arm}: the recording has no views with the {' or '.join(missing)} arm")
-    if args.camera_model is not None:
-        camera = CameraModel.from_yaml(args.camera_model)
-    elif recording.camera is not None:
-        camera = recording.camera
-    else:
-        raise ValueError(
-            f"--camera-model: needed, since {args.from_dir} has no camera.yaml (calibrate the intrinsics at the "
-            "resolution of the images with `pilworld calibrate intrinsics` first)"
-        )
-    try:
-        outcome = solve_recording(recording.views, camera, board, rig.kinematics, args.arm)
-    except DegenerateMotionError as exc:
-        raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    outcome.camera.to_yaml(args.out)
-    report: dict[str, Any] = {
-        "format": "pilworld.handeye_report/v1",
-        "rig": rig.name,
-        "arm": args.arm,
-        "source": source,
-        "camera_model": str(args.out),
-        "image_size": [camera.width, camera.height],
-        "board": board.name,
-        "poses": outcome.poses,
-        "rotation_span_deg": outcome.rotation_span_deg,
-        "residual_rms_px": outcome.residual_rms_px,
-        "arms": {a: r.to_dict() for a, r in outcome.per_arm.items()},
-        "T_cam_base": outcome.T_cam_base.tolist(),
-        "T_tcp_board": {a: T.tolist() for a, T in outcome.T_tcp_board.items()},
-    }
-    if outcome.both is not None:
-        report["combined"] = outcome.both.to_dict()
-    for name, result in outcome.per_arm.items():
-        print(_arm_line(name, result.to_dict()))
-    if outcome.both is not None:
-        b = outcome.both
-        print(
-            f"both arms: the two estimates of T_cam_base disagree by {b.disagreement_mm:.3f} mm and "
-            f"{b.disagreement_deg:.4f}°; joint refinement over both: residual RMS {b.rms_px:.3f} px"
-        )
-    if recording.truth is not None:
-        truth = truth_errors(rig, outcome, recording.truth, held_out_states(rig, arms, board, args.seed))
-        report["truth"] = truth
-        w, h = truth["gripper_image_size"]
-        print(
-            f"vs the simulator's truth: T_cam_base off by {truth['translation_err_mm']:.3f} mm and "
-            f"{truth['rotation_err_deg']:.4f}°; held-out gripper points off by max {truth['gripper_reproj_err_px']:.3f}"
-            f" px (mean {truth['gripper_reproj_mean_px']:.3f} px) at {w}x{h}"
-        )
-    report["seconds"] = time.perf_counter() - start
-    report_path = args.report if args.report is not None else args.out.with_suffix(".json")
-    report_path.parent.mkdir(parents=True, exist_ok=True)
-    report_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
-    print(f"wrote {args.out} and {report_path}")
-    if args.json:
-        print(json.dumps(report))
-    return 0
+        return folder
 
-
-def _handeye_wrist(args: argparse.Namespace, rig: RigConfig, start: float) -> int:
-    """``handeye --camera <wrist camera>``: eye-in-hand, the board fixed on the table, the camera's arm moving."""
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD
-    from pilworld.calibration.wrist_sim import WristTruth, record_sim_wrist, wrist_arm, wrist_truth_errors
-    from pilworld.calibration.wrist_solve import calibrate_wrist
-
-    name = args.camera
-    arm = wrist_arm(rig, name)  # a one-line error listing the rig's cameras for an unknown name
-    if args.arm is not None and args.arm != arm:
-        raise ValueError(f"--arm {args.arm}: {name} is carried by the {arm} arm (rig config); drop --arm")
-    board = ChArUcoBoard.from_yaml(args.board) if args.board is not None else None
-    recording, source = _recording(
-        args,
-        "camera poses",
-        f"collecting {name} views of a board on the table of the simulated rig {rig.name!r} "
-        f"({args.resolution} px wide)",
-        lambda: record_sim_wrist(
-            rig,
-            name,
-            board=board or ChArUcoBoard.from_yaml(DEFAULT_BOARD),
-            poses=args.poses,
-            seed=args.seed,
-            resolution=args.resolution,
-            log=print,
-        ),
-    )
-    board = board or recording.board
-    if args.camera_model is not None:
-        intrinsics = CameraModel.from_yaml(args.camera_model)
-    elif recording.camera is not None:
-        intrinsics = recording.camera
-    else:
-        raise ValueError(
-            f"--camera-model: needed, since {args.from_dir} has no camera.yaml (calibrate {name}'s intrinsics at the "
-            "resolution of the images with `pilworld calibrate intrinsics --name {name}` first)"
-        )
-    try:
-        result = calibrate_wrist(recording.views, intrinsics, board, rig.kinematics, arm, name)
-    except DegenerateMotionError as exc:
-        raise DegenerateMotionError(f"hand-eye: degenerate motion: {exc}") from None
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    result.camera_model().to_yaml(args.out)
-    d = result.to_dict()
-    report: dict[str, Any] = {
-        "format": "pilworld.handeye_report/v1",
-        "calibration": "eye_in_hand",
-        "rig": rig.name,
-        "camera": name,
-        "arm": arm,
-        "source": source,
-        "camera_model": str(args.out),
-        "image_size": [intrinsics.width, intrinsics.height],
-        "board": board.name,
-        **{k: v for k, v in d.items() if k not in ("camera", "arm")},
-    }
-    u = d["uncertainty"]
-    skipped = f", {len(d['skipped'])} skipped" if d["skipped"] else ""
-    closed = ", ".join(f"{m} {v['rms_px']:.3f} px" for m, v in d["closed_form"].items())
-    print(
-        f"{name} ({arm} arm): {d['poses']} poses{skipped}, rotation span {d['rotation_span_deg']:.1f}°, axis spread "
-        f"{d['axis_spread']:.2f}; closed forms {closed}; refined residual RMS {d['residual_rms_px']:.3f} px; "
-        f"σ {u['sigma_translation_mm']:.3f} mm, {u['sigma_rotation_deg']:.4f}°"
-    )
-    truth = WristTruth.from_extra(recording.extra)
-    if truth is not None and truth.camera == name:
-        errors = wrist_truth_errors(rig, result, truth)
-        report["truth"] = errors
-        w, h = errors["board_reproj_image_size"]
-        print(
-            f"vs the simulator's truth: T_tcp_cam off by {errors['translation_err_mm']:.3f} mm and "
-            f"{errors['rotation_err_deg']:.4f}°; board corners drawn off by max {errors['board_reproj_err_px']:.4f} px "
-            f"at {w}x{h}"
-        )
-    report["seconds"] = time.perf_counter() - start
-    report_path = args.report if args.report is not None else args.out.with_suffix(".json")
-    report_path.parent.mkdir(parents=True, exist_ok=True)
-    report_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
-    print(f"wrote {args.out} and {report_path}")
-    if args.write_rig is not None:
-        _write_rig(args.rig, args.write_rig, name, args.out)
-        report["rig_written"] = str(args.write_rig)
-        print(f"wrote {args.write_rig}: the rig config with wrist_cameras.{name}.file pointing at {args.out}")
-    else:
-        print(f"to use it, set in the rig config {args.rig}:  wrist_cameras: {{{name}: {{file: {args.out}}}}}")
-    if args.json:
-        print(json.dumps(report))
-    return 0
-
-
-def _write_rig(rig_path: Path, out: Path, camera: str, model: Path) -> None:
-    """A copy of the rig YAML with ``wrist_cameras.<camera>.file`` = ``model``; other camera files re-based."""
-    import os
-
-    import yaml
-
-    doc = yaml.safe_load(rig_path.read_text(encoding="utf-8"))
-    src, dst = rig_path.resolve().parent, out.resolve().parent
-
-    def rebase(value: str) -> str:
-        path = Path(value).expanduser()
-        return value if path.is_absolute() else os.path.relpath(src / path, dst)
-
-    head = doc.get("head_camera") or {}
-    if head.get("file"):
-        head["file"] = rebase(str(head["file"]))
-    for cam_name, cam in (doc.get("wrist_cameras") or {}).items():
-        if cam_name != camera and cam.get("file"):
-            cam["file"] = rebase(str(cam["file"]))
-    doc["wrist_cameras"][camera]["file"] = os.path.relpath(model.resolve(), dst)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(
-        f"# Written by `pilworld calibrate handeye --camera {camera} --write-rig`: {rig_path} with the calibrated "
-        f"{camera}.\n" + yaml.safe_dump(doc, sort_keys=False),
-        encoding="utf-8",
-    )
-    RigConfig.load(out)  # the copy must load (the model file exists, the fields validate)
-
-
-def _arm_line(name: str, d: dict[str, Any]) -> str:
-    closed = ", ".join(f"{m} {v['rms_px']:.3f} px" for m, v in d["closed_form"].items())
-    cv = d["opencv"]
-    cv_text = (
-        "OpenCV " + ", ".join(f"{m} {v['diff_mm']:.2f} mm/{v['diff_deg']:.3f}°" for m, v in cv.items())
-        if cv
-        else "OpenCV cross-check unavailable (this cv2 has no calibrateHandEye)"
-    )
-    skipped = f", {len(d['skipped'])} skipped" if d["skipped"] else ""
-    return (
-        f"{name:>5} arm: {d['poses']} poses{skipped}, rotation span {d['rotation_span_deg']:.1f}°, axis spread "
-        f"{d['axis_spread']:.2f}; closed forms {closed}; refined residual RMS {d['residual_rms_px']:.3f} px; "
-        f"{cv_text} from ours"
-    )
-
-
-# ---------------------------------------------------------------------- check
+    return collect
 
 
 def _check(args: argparse.Namespace) -> int:
-    from pilworld.calibration.check import check_views
-    from pilworld.calibration.recording import Recording
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for, record_sim, sim_calibration_camera
+    from pilworld.calibration.run_check import CheckRequest, run_check
 
     rig = RigConfig.load(args.rig)
-    if args.camera != HEAD_VIEW:
-        if rig.hardware is not None and args.images is None:
-            raise ValueError(
-                f"--camera {args.camera}: a robot-driven wrist-camera check on a hardware rig is not supported yet; "
-                "pass a recorded folder with --images"
-            )
-        return _check_wrist(args, rig)
-    if args.camera_model is not None:
-        camera = CameraModel.from_yaml(args.camera_model)
-    elif rig.head_camera.file is not None:
-        camera = CameraModel.from_yaml(rig.head_camera.file)
-    else:
-        camera = sim_calibration_camera(rig, 1024)  # a designed camera: checks the pipeline, not a calibration
-    report_path = args.handeye_report or args.report
-    model_path = args.camera_model or (Path(rig.head_camera.file) if rig.head_camera.file else None)
-    if report_path is None and model_path is not None and model_path.with_suffix(".json").is_file():
-        report_path = model_path.with_suffix(".json")
-    mounts: dict[str, Any] | None = None
-    if report_path is not None:
-        doc = json.loads(Path(report_path).read_text(encoding="utf-8"))
-        mounts = {a: np.asarray(T, dtype=np.float64) for a, T in doc.get("T_tcp_board", {}).items()}
-    if args.images is None and rig.hardware is not None:
-        # A hardware rig: the robot moves the board to held-out poses (planner seed --seed, not the
-        # calibration's), the views are recorded, then checked as a recorded folder is.
+    request = CheckRequest(
+        rig_path=args.rig,
+        rig=rig,
+        camera=args.camera,
+        camera_model=args.camera_model,
+        handeye_report=args.handeye_report,
+        report=args.report,
+        images=args.images,
+        arm=args.arm,
+        poses=args.poses,
+        seed=args.seed,
+        out=args.out,
+        max_px=args.max_px,
+        collect=_check_collector(args, rig) if rig.hardware is not None else None,
+    )
+    outcome = run_check(request, log=print)
+    if args.json:
+        print(json.dumps(outcome.summary))
+    if outcome.failure is not None:
+        print(f"pilworld: check failed: {outcome.failure}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _check_collector(args: argparse.Namespace, rig: RigConfig) -> Callable[[], Recording]:
+    """A hardware rig: the robot moves the board to held-out poses (planner seed --seed, not the calibration's),
+    the views are recorded into a folder and checked as a recorded folder is."""
+
+    def collect() -> Recording:
+        from pilworld.calibration.sim_handeye import DEFAULT_BOARD, arms_for
         from pilworld.cli.calibrate_rig import collect_views_on_rig
 
         if args.poses < 1:
@@ -615,159 +402,13 @@ def _check(args: argparse.Namespace) -> int:
             raise ValueError("--out (or --save): a check on a hardware rig records its held-out views there")
         args.board_file = DEFAULT_BOARD
         folder = args.save or args.out / "views"
-        recording = collect_views_on_rig(args, "check", folder, arms_for(args.arm), args.seed, for_calibration=False)
-        truth = recording.truth.T_cam_base if recording.truth is not None else None
+        recording: Recording = collect_views_on_rig(
+            args, "check", folder, arms_for(args.arm), args.seed, for_calibration=False
+        )
         if args.camera_model is None and rig.head_camera.file is None:
             raise ValueError(
                 "--camera-model: needed on a hardware rig (the calibration to check, as `calibrate handeye` wrote it)"
             )
-    elif args.images is not None:
-        recording = Recording.load(args.images)
-        truth = recording.truth.T_cam_base if recording.truth is not None else None
-    else:
-        if camera.dist.size and np.any(camera.dist != 0):
-            raise ValueError("--camera-model: has lens distortion, which the simulated rig cannot render; use --images")
-        if args.poses < 1:
-            raise ValueError(f"--poses: expected a number of board poses >= 1, got {args.poses}")
-        print(f"rendering {args.poses} held-out poses per arm on the simulated rig (seed {args.seed})")
-        recording = record_sim(
-            rig,
-            args.arm,
-            board=ChArUcoBoard.from_yaml(DEFAULT_BOARD),
-            poses=args.poses,
-            seed=args.seed,
-            resolution=camera.width,
-            log=print,
-            for_calibration=False,
-        )
-        truth = rig.head_camera_model.T_cam_base
-    result = check_views(
-        recording.views, camera, rig, truth_T_cam_base=truth, board=recording.board, T_tcp_board=mounts
-    )
-    checked = result.to_dict()
-    summary: dict[str, Any] = {"camera_model": str(model_path) if model_path else None, "views": len(recording.views)}
-    summary |= checked
-    for line in result.lines():
-        print(line)
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        for name, image in result.overlays.items():
-            cv2.imwrite(str(args.out / f"check_{Path(name).stem}.png"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-        (args.out / "check.json").write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
-        print(f"wrote {len(result.overlays)} overlays and check.json to {args.out}")
-    if args.json:
-        print(json.dumps(summary))
-    if args.max_px is not None:
-        worst = [
-            v
-            for entry in checked["arms"].values()
-            for k, v in entry.items()
-            if k in ("gripper_err_max_px", "board_reproj_rms_px_at_rig_size")
-        ]
-        if any(v > args.max_px for v in worst):
-            print(f"pilworld: check failed: an error exceeds --max-px {args.max_px}", file=sys.stderr)
-            return 1
-    return 0
+        return recording
 
-
-def _check_wrist(args: argparse.Namespace, rig: RigConfig) -> int:
-    """``check --camera <wrist camera>``: FK-predicted board corners on held-out views of the table board."""
-    from pilworld.calibration.recording import Recording
-    from pilworld.calibration.sim_handeye import DEFAULT_BOARD
-    from pilworld.calibration.wrist_check import check_wrist_views, record_wrist_check_sim
-    from pilworld.calibration.wrist_sim import WristTruth, sim_wrist_camera, wrist_arm
-
-    name = args.camera
-    arm = wrist_arm(rig, name)  # a one-line error listing the rig's cameras for an unknown name
-    rig_size = (rig.image_size.width, rig.image_size.height)
-    file = rig.wrist_cameras[name].file
-    model_path = args.camera_model or (Path(file) if file is not None else None)
-    camera = CameraModel.from_yaml(model_path) if model_path is not None else None
-    if camera is None:
-        print(
-            f"note: {name} has no file: in the rig config {args.rig} (wrist_cameras.{name}.file); checking its "
-            "designed mount (pose_in_tcp, fovy_deg)"
-        )
-    board = ChArUcoBoard.from_yaml(DEFAULT_BOARD)
-    if args.images is not None:
-        recording = Recording.load(args.images)
-        board = recording.board
-        sizes = {v.image_size for v in recording.views if v.arm == arm}
-        if len(sizes) != 1:
-            raise ValueError(f"--images {args.images}: expected {arm}-arm views of one image size, got {sorted(sizes)}")
-        (w, h) = sizes.pop()
-        if camera is None:
-            design = sim_wrist_camera(rig, name, w)  # the designed pinhole and mount
-            intr = recording.camera if recording.camera is not None else design
-            camera = intr.with_pose(design.T_cam_base)
-        elif (camera.width, camera.height) != (w, h):
-            if abs(camera.width / camera.height - w / h) > 1e-6:
-                raise ValueError(
-                    f"--images {args.images}: images are {w}x{h} but the camera model is {camera.width}x"
-                    f"{camera.height} (another aspect ratio); calibrate at the images' resolution"
-                )
-            camera = camera.resized(w, h)
-        report_path = args.report
-        if report_path is None and model_path is not None and model_path.with_suffix(".json").is_file():
-            report_path = model_path.with_suffix(".json")
-        truth = WristTruth.from_extra(recording.extra)
-        if report_path is not None:
-            doc = json.loads(Path(report_path).read_text(encoding="utf-8"))
-            if "T_rig_board" not in doc:
-                raise ValueError(f"--report {report_path}: no T_rig_board (expected a wrist calibration report)")
-            T_rig_board = np.asarray(doc["T_rig_board"], dtype=np.float64).reshape(4, 4)
-            board_source = f"the calibration report {report_path}"
-        elif truth is not None and truth.camera == name:
-            T_rig_board = truth.T_rig_board
-            board_source = "the simulator's table board (recorded truth)"
-        else:
-            raise ValueError(
-                f"--report: needed, the calibration JSON holding the board pose T_rig_board (the board must lie "
-                f"where it lay for the calibration); none beside {model_path or 'the camera model'}"
-            )
-        source = str(args.images)
-        print(
-            f"{len(recording.for_arm(arm))} recorded {arm}-arm views in {args.images}; board pose from {board_source}"
-        )
-    else:
-        if camera is None:
-            camera = sim_wrist_camera(rig, name, 1024)
-        if camera.dist.size and np.any(camera.dist != 0):
-            raise ValueError(
-                f"{name}: the camera model has lens distortion, which the simulated rig cannot render; use --images"
-            )
-        if args.poses < 1:
-            raise ValueError(f"--poses: expected a number of camera poses >= 1, got {args.poses}")
-        print(f"rendering {args.poses} held-out {name} poses on the simulated rig ({camera.width} px wide)")
-        recording, T_rig_board = record_wrist_check_sim(
-            rig, name, board=board, poses=args.poses, seed=args.seed, resolution=camera.width, log=print
-        )
-        source = "simulated rig"
-    result = check_wrist_views(
-        recording.views, camera, recording.board, rig.kinematics, arm, T_rig_board, rig_size=rig_size, name=name
-    )
-    checked = result.to_dict()
-    summary: dict[str, Any] = {
-        "camera_model": str(model_path) if model_path else None,
-        "designed_mount": model_path is None,
-        "source": source,
-        "T_rig_board": np.asarray(T_rig_board).tolist(),
-        **checked,
-    }
-    for line in result.lines():
-        print(line)
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        for view, image in result.overlays.items():
-            cv2.imwrite(str(args.out / f"check_{Path(view).stem}.png"), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-        (args.out / "check.json").write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
-        print(f"wrote {len(result.overlays)} overlays and check.json to {args.out}")
-    if args.json:
-        print(json.dumps(summary))
-    if args.max_px is not None:
-        worst = checked.get("worst_view_rms_px_at_rig_size")
-        if worst is None or worst > args.max_px:
-            what = "no view showed the board" if worst is None else f"a view's corner RMS {worst:.4f} px at rig size"
-            print(f"pilworld: check failed: {what} (--max-px {args.max_px})", file=sys.stderr)
-            return 1
-    return 0
+    return collect

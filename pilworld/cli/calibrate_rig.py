@@ -227,7 +227,7 @@ def collect_views_on_rig(
     On the fake rig the folder also records the simulator's truth (the camera pose and the board mounts).
     """
     from calib.board import ChArUcoBoard
-    from pilworld.calibration.planner import PlannerSettings, plan_board_poses
+    from pilworld.calibration.plan import PlannerSettings, plan_board_poses
     from pilworld.calibration.recording import CAMERA_FILE, POSES_FILE, Recording
     from pilworld.calibration.rig_collection import ArmPlan, CollectionPlan, ViewStore, collect_on_rig, plan_text
     from pilworld.calibration.rig_devices import open_robot

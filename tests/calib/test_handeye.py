@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from calib.board import ChArUcoBoard
-from calib.handeye import DegenerateMotionError, check_motion, solve_ax_xb, solve_eye_to_hand
+from calib.handeye import DegenerateMotionError, check_motion, solve_ax_xb
 from calib.handeye_opencv import opencv_eye_to_hand
 from calib.handeye_refine import refine_eye_to_hand, reprojection_residuals
+from calib.handeye_solve import solve_eye_to_hand
 from calib.rotations import pose_difference, rigid, rotation_exp, rotation_log
 from calib.synthetic import random_board_pose
 from pilworld.geometry import invert_transform

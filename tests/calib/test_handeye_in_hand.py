@@ -8,13 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from calib.handeye import DegenerateMotionError
-from calib.handeye_in_hand import (
-    check_eye_in_hand_motion,
-    eye_in_hand_residuals,
-    refine_eye_in_hand,
-    solve_eye_in_hand,
-)
+from calib.handeye import DegenerateMotionError, check_eye_in_hand_motion
+from calib.handeye_refine import eye_in_hand_residuals, refine_eye_in_hand
+from calib.handeye_solve import solve_eye_in_hand
 from calib.rotations import pose_difference, rigid, rotation_exp
 from calib.sweep import (
     IN_HAND_DEFAULTS,

@@ -16,8 +16,8 @@ import pytest
 from calib.board import ChArUcoBoard
 from calib.detect import BoardDetector
 from pilworld.calibration.collect import collect_views
-from pilworld.calibration.planner import PlannerSettings, plan_board_poses
-from pilworld.calibration.sim_handeye import sim_calibration_camera
+from pilworld.calibration.plan import PlannerSettings, plan_board_poses
+from pilworld.calibration.sim_cameras import sim_calibration_camera
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT
 from simrig.board_mount import BOARD_TEXTURE_FILE, BoardMount

@@ -12,7 +12,7 @@ from calib.board import ChArUcoBoard
 from calib.handeye import DegenerateMotionError
 from calib.rotations import rotation_angle
 from pilworld.calibration.occlusion import arm_capsules, segment_distances
-from pilworld.calibration.planner import PlannerSettings, PosePlan, plan_board_poses
+from pilworld.calibration.plan import PlannerSettings, PosePlan, plan_board_poses
 from pilworld.config.rig import RigConfig
 from pilworld.types import ARM_LAYOUT
 from simrig.board_mount import BoardMount

@@ -19,14 +19,10 @@ from calib.rotations import pose_difference, rigid, rotation_exp
 from pilworld.calibration.check import check_views, gripper_reprojection_errors
 from pilworld.calibration.collect import move_to
 from pilworld.calibration.recording import RecordedView, Recording
-from pilworld.calibration.sim_handeye import (
-    held_out_states,
-    record_sim,
-    run_sim_handeye,
-    sim_calibration_camera,
-    truth_errors,
-)
-from pilworld.calibration.solve import solve_recording
+from pilworld.calibration.sim_cameras import sim_calibration_camera
+from pilworld.calibration.sim_handeye import held_out_states, record_sim, run_sim_handeye
+from pilworld.calibration.sim_truth import truth_errors
+from pilworld.calibration.solve_arms import solve_recording
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.types import LEFT_ARM

@@ -11,11 +11,11 @@ import pytest
 from calib.board import ChArUcoBoard
 from calib.camera_model import CameraModel
 from calib.rotations import rigid, rotation_exp
+from pilworld.calibration.check import WristCheckResult, check_wrist_views
 from pilworld.calibration.recording import Recording
-from pilworld.calibration.wrist_check import WristCheckResult, check_wrist_views, record_wrist_check_sim
-from pilworld.calibration.wrist_sim import record_sim_wrist
-from pilworld.calibration.wrist_solve import calibrate_wrist
-from pilworld.cli.calibrate import _write_rig
+from pilworld.calibration.rig_file import write_rig_with_camera as _write_rig
+from pilworld.calibration.sim_handeye import record_sim_wrist, record_wrist_check_sim
+from pilworld.calibration.solve import calibrate_wrist
 from pilworld.cli.main import main
 from pilworld.config.rig import RigConfig
 

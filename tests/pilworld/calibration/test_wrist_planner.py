@@ -9,12 +9,9 @@ import pytest
 
 from calib.board import ChArUcoBoard
 from calib.handeye import DegenerateMotionError
-from pilworld.calibration.wrist_planner import (
-    WristPlannerSettings,
-    _gripper_mask,
-    gripper_boxes_tcp,
-    plan_wrist_poses,
-)
+from pilworld.calibration.gripper_mask import gripper_boxes_tcp
+from pilworld.calibration.gripper_mask import gripper_mask as _gripper_mask
+from pilworld.calibration.plan import WristPlannerSettings, plan_wrist_poses
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
 from simrig.poses import HOME_Q14

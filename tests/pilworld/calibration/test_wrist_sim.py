@@ -13,15 +13,10 @@ from calib.detect import BoardDetector
 from calib.handeye import DegenerateMotionError
 from calib.rotations import pose_difference
 from pilworld.calibration.recording import Recording
-from pilworld.calibration.wrist_sim import (
-    WristTruth,
-    record_sim_wrist,
-    run_sim_wrist,
-    sim_wrist_camera,
-    wrist_arm,
-    wrist_truth_errors,
-)
-from pilworld.calibration.wrist_solve import calibrate_wrist
+from pilworld.calibration.sim_cameras import sim_wrist_camera, wrist_arm
+from pilworld.calibration.sim_handeye import record_sim_wrist, run_sim_wrist
+from pilworld.calibration.sim_truth import WristTruth, wrist_truth_errors
+from pilworld.calibration.solve import calibrate_wrist
 from pilworld.config.rig import RigConfig
 from pilworld.geometry import invert_transform
 from simrig.robot import SimRobot
