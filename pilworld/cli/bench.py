@@ -12,11 +12,12 @@ from typing import Any
 
 from pilworld.bench.reprojection import add_arguments as reprojection_arguments
 from pilworld.cli.bench_print import Column, emit, num, pct, table
-from pilworld.cli.checks import SIM_REPEATS, bounded
-from pilworld.cli.control_video import parse_size
 from pilworld.collection.tasks import APPEARANCES
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
+from pilworld.options.bounds import SIM_REPEATS, bounded
+from pilworld.options.parse import names as _names
+from pilworld.options.parse import parse_size
 from pilworld.types import ChunkSpec
 from simrig.files import SIM_RIG
 
@@ -478,20 +479,10 @@ def _data(args: argparse.Namespace) -> int:
     return emit(args, result)
 
 
-def _names(value: str, all_names: list[str], what: str) -> list[str]:
-    if value.strip() == "all":
-        return all_names
-    names = [v.strip() for v in value.split(",") if v.strip()]
-    bad = [n for n in names if n not in all_names]
-    if bad or not names:
-        raise ValueError(f"{what}: unknown {bad or value!r}; choose from {', '.join(all_names)} or 'all'")
-    return names
-
-
 def _sim(args: argparse.Namespace) -> int:
     from pilworld.bench.sim import run_sim_bench
-    from pilworld.cli.checks import SIM_REPEATS, TRY_SUBTASKS, WORKERS, check_count
     from pilworld.collection.tasks import require_simulated, resolve_tasks
+    from pilworld.options.bounds import SIM_REPEATS, TRY_SUBTASKS, WORKERS, check_count
     from pilworld.policies.scripted import CHECKPOINTS
 
     check_count(args.subtasks, "--subtasks", TRY_SUBTASKS)
