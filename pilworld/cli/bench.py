@@ -10,8 +10,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from pilworld.bench.output import Column, emit, num, pct, table
 from pilworld.bench.reprojection import add_arguments as reprojection_arguments
-from pilworld.cli.bench_print import Column, emit, num, pct, table
 from pilworld.collection.tasks import APPEARANCES
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
@@ -26,7 +26,7 @@ def _signed(digits: int) -> Any:
     return lambda x: f"{float(x):+.{digits}f}"
 
 
-# The tables the benches print, one column list each (pilworld/cli/bench_print.py aligns them).
+# The tables the benches print, one column list each (pilworld/bench/output.py aligns them).
 PAIRED_COLUMNS = (
     Column("variant", 15, "variant", align="<"),
     Column("SR_real", 8, "sr_real", pct),

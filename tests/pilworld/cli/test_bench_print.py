@@ -7,8 +7,8 @@ import json
 
 import pytest
 
+from pilworld.bench.output import Column, emit, num, pct, table
 from pilworld.cli.bench import PAIRED_COLUMNS, PPI_COLUMNS
-from pilworld.cli.bench_print import Column, emit, num, pct, table
 
 
 def test_table_aligns_every_row_under_its_header() -> None:
