@@ -16,7 +16,7 @@ from pilworld.collection.tasks import APPEARANCES
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
 from pilworld.options.bounds import SIM_REPEATS, bounded
-from pilworld.options.parse import names as _names
+from pilworld.options.parse import parse_names as _names
 from pilworld.options.parse import parse_size
 from pilworld.types import ChunkSpec
 from simrig.files import SIM_RIG

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.collection.tasks import APPEARANCES
-from pilworld.options.parse import names
+from pilworld.options.parse import parse_names
 from simrig.files import SIM_RIG
 
 SPREAD_WORST = 0.3  # the worst checkpoint succeeds at most this often …
@@ -193,7 +193,7 @@ def _try(args: argparse.Namespace) -> int:
     check_count(args.subtasks, "--subtasks", TRY_SUBTASKS)
     check_count(args.workers, "--workers", WORKERS)
     check_count(args.seed, "--seed", SEED)
-    ckpts = names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
+    ckpts = parse_names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
     task = _simulated_task(args.file)
     t0 = time.monotonic()
     rates = success_rates(

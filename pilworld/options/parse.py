@@ -6,7 +6,7 @@ A bad value is a one-line ``ValueError`` naming the flag (``pilworld`` exits 2 o
 from __future__ import annotations
 
 
-def names(value: str, all_names: list[str], what: str) -> list[str]:
+def parse_names(value: str, all_names: list[str], what: str) -> list[str]:
     """``value`` as a list of known names: ``all`` gives ``all_names``; an unknown or empty list is refused."""
     if value.strip() == "all":
         return all_names
