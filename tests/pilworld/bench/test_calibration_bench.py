@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 
 from calib.sweep import AXES, available_methods, run_sweep
-from pilworld.bench.calibration import DEFAULT_RIG, handeye_figures, plot_sweep
+from pilworld.bench.calibration import handeye_figures, plot_sweep
 from pilworld.cli.main import main
+from simrig.files import SIM_RIG as DEFAULT_RIG
 
 HEADLINE = (
     "intrinsics_focal_rel_err",

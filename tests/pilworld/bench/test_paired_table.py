@@ -24,13 +24,13 @@ from pilworld.bench.paired import (
     select_variants,
 )
 from pilworld.bench.variants import V2_VARIANTS, ModelVariant, PairedProtocol, evaluate_variants, standard_variants
-from pilworld.cli.bench import DEFAULT_RIG
 from pilworld.cli.main import main
 from pilworld.data.outcomes import Outcome, record_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.paired.runner import TIMINGS_FILE
 from pilworld.policies.registry import policy_names
 from pilworld.world_model import V1_CHECKPOINT
+from simrig.files import SIM_RIG as DEFAULT_RIG
 from simrig.tasks import TASK_NAMES
 from tests.pilworld.metrics.synthetic import ROUNDS, K, SynthPair, write_paired
 
