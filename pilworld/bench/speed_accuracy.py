@@ -66,6 +66,7 @@ rule, for contrast: the fastest real-time point of the (latency, head PSNR) fron
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -75,6 +76,8 @@ from typing import Any
 import numpy as np
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import Column, emit, num, pct, table
 from pilworld.bench.speed_accuracy_front import (
     SHIPPED,
     SINGLE_STEP_OBJECTIVES,
@@ -86,6 +89,7 @@ from pilworld.bench.speed_accuracy_front import (
     steps_buy,
 )
 from pilworld.bench.variants import ModelVariant, PairedProtocol, bench_model, evaluate_variants
+from pilworld.options.bounds import at_least_one
 
 STEPS = (1, 2, 4, 8, 16)
 QUICK_STEPS = (1, 4, 16)
@@ -519,3 +523,118 @@ def _closed_loop(
         "points": [v.name for v in variants],
         "out": str(out),
     }
+
+
+# ---------------------------------------------------------------------- pilworld bench speed-accuracy
+
+# The summary table, one row per point (pilworld/bench/output.py aligns it).
+SPEED_ACCURACY_COLUMNS = (
+    Column("point", 14, "id", align="<"),
+    Column("params", 8, "params", lambda x: "—" if x is None else f"{x / 1e6:.2f}M"),
+    Column("round ms", 10, "chunk_latency_ms", lambda x: num(x, 1)),
+    Column("x realtime", 11, "realtime_factor", lambda x: num(x, 1)),
+    Column("|ΔSR|", 7, "abs_delta_sr", pct),
+    Column("HFR", 7, "hfr", lambda x: num(x, 3)),
+    Column("SR_imag", 8, "sr_imag", pct),
+    Column("head PSNR", 10, "psnr_head", num),
+    Column("front", 5, "front", align="<", sep="  "),
+    Column("", 0, "remark", align="<", sep=" "),
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="steps 1,4,16, 24 held-out clips, 3 timed rounds; closed loop on 6 pairs, v1 at 1 step and v2 only",
+    )
+    add_rig(parser)
+    parser.add_argument(
+        "--steps", default="", help="comma-separated v1 sampling steps (default 1,2,4,8,16; quick 1,4,16)"
+    )
+    parser.add_argument("--clips", type=int, default=None, help="held-out clips per point (default 24 quick / 96)")
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=None,
+        help="timed imagined rounds per point; the median is reported (default 10, quick 3)",
+    )
+    parser.add_argument(
+        "--subtasks", type=int, default=None, help="closed loop: subtasks per task × checkpoint (default 3, quick 1)"
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="closed-loop run folders (default bench_runs/speed-accuracy-full, or -quick)",
+    )
+    parser.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    parser.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/speed_accuracy.png)")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The sweep, its chart (``--chart``, default OUT/speed_accuracy.png), the points and the knee."""
+    # Imported here: the chart needs matplotlib, which the other users of this module do not.
+    from pilworld.bench.charts import speed_accuracy_chart
+
+    try:
+        steps = [int(s) for s in args.steps.split(",") if s.strip()] or None
+    except ValueError:
+        raise ValueError(f"--steps: expected comma-separated integers such as 1,2,4, got {args.steps!r}") from None
+    if steps and min(steps) < 1:
+        raise ValueError(f"--steps: expected integers >= 1, got {args.steps!r}")
+    at_least_one(args, "clips", "repeats", "subtasks")
+    out = args.out or Path("bench_runs") / ("speed-accuracy-quick" if args.quick else "speed-accuracy-full")
+    r = run_speed_accuracy(
+        rig=args.rig,
+        quick=args.quick,
+        steps=steps,
+        clips=args.clips,
+        repeats=args.repeats,
+        subtasks=args.subtasks,
+        out=out,
+        workers=args.workers,
+        progress=not args.json,
+    )
+    chart = speed_accuracy_chart(
+        r["points"],
+        r["front_ids"],
+        args.chart or out / "speed_accuracy.png",
+        knee=r["default"].get("id"),
+        shipped=r["shipped_default"]["id"],
+    )
+    r["chart"] = str(chart)
+    return emit(args, r, summary_lines(r))
+
+
+def summary_lines(r: dict[str, Any]) -> list[str]:
+    """The sweep in a line, every point's row, the knee and the shipped default, the single-step knee."""
+    d, shipped, loop = r["default"], r["shipped_default"], r["closed_loop"]
+    pairs = f"{loop['pairs_per_point']} closed-loop pairs per point" if "pairs_per_point" in loop else loop["skipped"]
+    rows = [
+        {
+            **p,
+            "front": "*" if p["id"] in r["front_ids"] else "",
+            "remark": p.get("skipped") or p.get("untrained") or p.get("closed_loop") or "",
+        }
+        for p in r["points"]
+    ]
+    lines = [
+        f"speed-accuracy ({'quick' if r['quick'] else 'full'}): {len(r['points'])} points, {pairs}, chart {r['chart']}",
+        f"  latency: {r['latency']['measures']}",
+        *table(SPEED_ACCURACY_COLUMNS, rows),
+    ]
+    if d.get("id") is None:
+        lines.append(f"  knee: none ({d['none']})")
+    else:
+        lines.append(
+            f"  knee: {d['id']} ({d['family']}{'' if d['preset'] == d['family'] else ' ' + d['preset']} "
+            f"{d['size']}, {d['params']:,} parameters), "
+            f"{d['chunk_latency_ms']:.1f} ms per round, |ΔSR| {pct(d['abs_delta_sr'])}, HFR {num(d['hfr'], 3)} "
+            f"— {d['rule']}"
+        )
+        lines.append(f"  shipped default ({shipped['id']}): {shipped['verdict']}")
+    single = r["single_step_knee"]
+    lines.append(f"  single-step knee (head PSNR, for contrast): {single.get('id') or single.get('none')}")
+    return lines

@@ -68,10 +68,16 @@ the horizon figures (:mod:`.horizon`), the probes' chunks (:mod:`.probe_chunks`)
 
 from __future__ import annotations
 
+import argparse
+from pathlib import Path
+
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.bench.stability.horizon import horizon_sweep
 from pilworld.bench.stability.models import known_models, resolve_models
 from pilworld.bench.stability.probe_chunks import JITTER_RAD, transplant
 from pilworld.bench.stability.prober import probe
+from pilworld.bench.stability.report import summary_lines
 from pilworld.bench.stability.rig_errors import (
     CAL_SHIFTS_PX,
     ERROR_SEED,
@@ -90,6 +96,7 @@ from pilworld.bench.stability.settings import (
     SHUFFLE_ROUNDS,
     STABILITY_SEED0,
 )
+from pilworld.options.bounds import at_least_one
 
 __all__ = [
     "CAL_SHIFTS_PX",
@@ -111,5 +118,46 @@ __all__ = [
     "resolve_models",
     "rig_errors",
     "run_stability",
+    "summary_lines",
     "transplant",
 ]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="1 subtask per task × checkpoint, 1 probe start each")
+    parser.add_argument(
+        "--models",
+        default="",
+        help="bench variants side by side, comma-separated (default: pilworld,v2_paper_gamma)",
+    )
+    add_rig(parser)
+    parser.add_argument(
+        "--subtasks", type=int, default=None, help="20-round pairs per task × checkpoint (default 1 / 5)"
+    )
+    parser.add_argument("--starts", type=int, default=None, help="probe starts per task × checkpoint (default 1 / 4)")
+    parser.add_argument("--out", type=Path, default=None, help="run folders (default bench_runs/stability-quick|full)")
+    parser.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    parser.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/stability.png)")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The whole bench for ``--models``, its chart (``--chart``, default OUT/stability.png) and the summary."""
+    # Imported here: the chart needs matplotlib, which the probes' spawned process does not.
+    from pilworld.bench.charts import stability_chart
+
+    at_least_one(args, "subtasks", "starts")
+    out = args.out or Path("bench_runs") / ("stability-quick" if args.quick else "stability-full")
+    models = [n.strip() for n in args.models.split(",") if n.strip()] or None
+    r = run_stability(
+        rig=args.rig,
+        quick=args.quick,
+        out=out,
+        subtasks=args.subtasks,
+        starts=args.starts,
+        workers=args.workers,
+        models=models,
+        progress=not args.json,
+    )
+    r["chart"] = str(stability_chart(r, args.chart or out / "stability.png"))
+    return emit(args, r, summary_lines(r))

@@ -38,6 +38,11 @@ the degradations (:mod:`.degrade`), the lab and its caches (:mod:`.lab`, :mod:`.
 
 from __future__ import annotations
 
+import argparse
+from pathlib import Path
+
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.bench.wm_ladder.degrade import degrade_episode
 from pilworld.bench.wm_ladder.envs import AutoencodedEnv, StateContractEnv
 from pilworld.bench.wm_ladder.lab import Lab
@@ -53,6 +58,8 @@ from pilworld.bench.wm_ladder.settings import (
     LadderConfig,
 )
 from pilworld.bench.wm_ladder.teacher_forced import teacher_forced_errors, teacher_forced_predictions
+from pilworld.options.bounds import at_least_one
+from pilworld.types import ChunkSpec
 
 __all__ = [
     "DEFAULT_OUT",
@@ -75,3 +82,49 @@ __all__ = [
     "teacher_forced_errors",
     "teacher_forced_predictions",
 ]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="3 tasks × 3 checkpoints × 1 subtask (≤ 5 min on 2 cores)")
+    parser.add_argument(
+        "--subtasks", type=int, default=None, help="subtasks per task × checkpoint (default 1 quick / 2)"
+    )
+    parser.add_argument("--model", type=Path, default=None, help="world-model folder (default: v1, sim_small)")
+    add_rig(parser)
+    parser.add_argument("--rungs", default="", help="comma-separated rungs (default: all four)")
+    parser.add_argument("--tasks", default="all", help="comma-separated tasks (default all three)")
+    parser.add_argument(
+        "--checkpoints", default="", help="comma-separated scripted checkpoints (default: 3 quick / all 5)"
+    )
+    parser.add_argument("--rounds", type=int, default=None, help="closed-loop rounds per subtask (default 5)")
+    parser.add_argument("--out", type=Path, default=None, help="cache folder, resumed (default bench_runs/wm_ladder)")
+    parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's own)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The rungs of the options (or all four), resumed from ``--out``, and one summary line per rung."""
+    at_least_one(args, "subtasks", "threads")
+    if args.threads is not None:
+        import torch
+
+        torch.set_num_threads(args.threads)
+    at_least_one(args, "rounds")
+
+    def names(value: str) -> tuple[str, ...]:
+        return tuple(v.strip() for v in value.split(",") if v.strip())
+
+    cfg = LadderConfig(
+        model=str(args.model) if args.model is not None else "",
+        rig=str(args.rig),
+        quick=args.quick,
+        subtasks=args.subtasks,
+        tasks=TASKS if args.tasks.strip() == "all" else names(args.tasks),
+        checkpoints=names(args.checkpoints) or None,
+        rungs=names(args.rungs) or RUNGS,
+        spec=ChunkSpec() if args.rounds is None else ChunkSpec(rounds=args.rounds),
+        out=str(args.out or DEFAULT_OUT),
+    )
+    r = run_wm_ladder(cfg, progress=not args.no_progress)
+    return emit(args, r, summary_lines(r))
