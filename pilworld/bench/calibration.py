@@ -508,3 +508,90 @@ def run_calibration_bench(
     out["seconds"]["total"] = time.perf_counter() - t_total
     out["machine"] = machine_info()
     return out
+
+
+# ---------------------------------------------------------------------- pilworld bench calibration
+# The command's options, run and summary. Imported here rather than at the top, so that this block can be
+# appended without touching the module's own imports.
+import argparse  # noqa: E402
+
+from pilworld.bench.flags import add_json  # noqa: E402
+from pilworld.bench.output import emit  # noqa: E402
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seeds", type=int, default=20, help="intrinsics seeds, 20 views each (default 20)")
+    parser.add_argument("--views", type=int, default=20, help="views per intrinsics seed (default 20)")
+    parser.add_argument("--trials", type=int, default=30, help="hand-eye trials per sweep point (default 30)")
+    parser.add_argument(
+        "--handeye-source",
+        choices=["auto", "sim", "synthetic"],
+        default=None,
+        help="headline hand-eye figures: rendered simulated rig (sim), synthetic, or sim when available "
+        "(auto, the default; --quick defaults to synthetic)",
+    )
+    parser.add_argument("--handeye-poses", type=int, default=20, help="gripper poses of the headline run (default 20)")
+    parser.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config of the sim hand-eye run")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="chart folder (created)")
+    parser.add_argument("--quick", action="store_true", help="2 seeds, 2 trials per point: a few seconds (tests)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
+    parser.add_argument("--seed", type=int, default=0)
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    r = run_calibration_bench(
+        seeds=args.seeds,
+        views=args.views,
+        trials=args.trials,
+        quick=args.quick,
+        out_dir=args.out,
+        handeye_source=args.handeye_source,
+        handeye_poses=args.handeye_poses,
+        rig_path=args.rig,
+        seed=args.seed,
+        progress=not args.no_progress,
+    )
+    return emit(args, r, summary_lines(r))
+
+
+def summary_lines(r: dict[str, Any]) -> list[str]:
+    """Intrinsics, the headline hand-eye figures (and the synthetic ones beside sim), eye-in-hand, the sweep."""
+    lines = [
+        f"intrinsics ({r['intrinsics_seeds']} seeds x {r['intrinsics_views']} views, {r['intrinsics_noise_px']} px): "
+        f"|Δf|/f {r['intrinsics_focal_rel_err_percent']:.3f} %, principal point {r['intrinsics_pp_err_px']:.2f} px, "
+        f"RMS {r['intrinsics_rms_px']:.3f} px (max {r['intrinsics_rms_px_max']:.3f}), 95 % intervals cover "
+        f">= {r['intrinsics_ci95_coverage']:.0%} of seeds",
+        f"hand-eye ({r['handeye_source']}): {r['handeye_trans_err_mm']:.3g} mm, {r['handeye_rot_err_deg']:.3g}°, "
+        f"gripper reprojection {r['gripper_reproj_err_px']:.3g} px",
+    ]
+    syn = r["handeye_synthetic"]
+    if r["handeye_source"] != "synthetic":
+        lines.append(
+            f"hand-eye (synthetic, {syn['pixel_noise_px']} px noise, {syn['poses']} poses): "
+            f"{syn['handeye_trans_err_mm']:.3g} mm, {syn['handeye_rot_err_deg']:.3g}°"
+        )
+    if "wrist" in r:
+        for cam, w in r["wrist"]["cameras"].items():
+            lines.append(
+                f"eye-in-hand {cam} ({r['wrist_source']}): max {w['trans_err_mm_max']:.3g} mm, "
+                f"{w['rot_err_deg_max']:.3g}° over the seeds (median {w['trans_err_mm_median']:.3g} mm, "
+                f"{w['rot_err_deg_median']:.3g}°)"
+            )
+    settings = r["sweep_settings"]
+    lines.append(f"sweep: {settings['trials']} trials per point, OpenCV {r['opencv_version']} (median mm / median deg)")
+    for axis, per in r["sweep"].items():
+        lines.append(f"  {axis}:")
+        for method, stats in per.items():
+            cells = [
+                f"{s['value']:g}: "
+                + (
+                    "refused"
+                    if s["trans_mm_median"] is None
+                    else f"{s['trans_mm_median']:.2f}/{s['rot_deg_median']:.2f}"
+                )
+                for s in stats
+            ]
+            lines.append(f"    {method:<18} " + "  ".join(cells))
+    lines.append(f"chart: {r['chart']}")
+    return lines

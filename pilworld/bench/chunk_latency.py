@@ -11,6 +11,7 @@ by up to 2× in absolute speed).
 
 from __future__ import annotations
 
+import argparse
 import platform
 import time
 from collections.abc import Mapping
@@ -21,8 +22,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.types import ChunkSpec, RobotSpec, Start
+from pilworld.world_model.base import RigBound
 
 if TYPE_CHECKING:
     from pilworld.envs import ImaginedEnv
@@ -85,9 +89,8 @@ def imagined_env(model: WorldModel, setup: RoundSetup, *, steps: int | None = No
     from pilworld.control_video.gamma import ControlVideo
     from pilworld.envs import ImaginedEnv
 
-    bind = getattr(model, "bind_rig", None)
-    if callable(bind):
-        bind(setup.rig)
+    if isinstance(model, RigBound):
+        model.bind_rig(setup.rig)
     gamma = ControlVideo.from_rig(setup.rig, setup.spec)
     return ImaginedEnv(model, gamma, setup.spec, steps=steps, safety=SafetyFilter(setup.robot_spec))
 
@@ -142,3 +145,31 @@ def run_chunk_latency(
         },
         "reference": first,
     }
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--models",
+        default="",
+        help="NAME=FOLDER,... (default: v1 = sim_small, v2 = the shipped sim_composite); ratios to the first",
+    )
+    add_rig(parser)
+    parser.add_argument(
+        "--task", default="sort_cubes", help="task of the start and of the adapter (default sort_cubes)"
+    )
+    parser.add_argument("--repeats", type=int, default=20, help="timed rounds per model; the median is reported")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """One line per model: median and p90 of a round, and its ratio to the first model."""
+    # Imported here: the package's checkpoints pull in the model code, which parsing the options does not need.
+    from pilworld.world_model import DEFAULT_CHECKPOINT, V1_CHECKPOINT
+
+    text = args.models or f"v1={V1_CHECKPOINT},v2={DEFAULT_CHECKPOINT}"
+    result = run_chunk_latency(parse_models(text), rig=args.rig, task=args.task, repeats=args.repeats)
+    lines = [
+        f"{name:>12}: median {m['median_ms']:.1f} ms, p90 {m['p90_ms']:.1f} ms, ×{m['ratio_to_first']:.2f}"
+        for name, m in result["models"].items()
+    ]
+    return emit(args, result, lines)

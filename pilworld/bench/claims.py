@@ -52,7 +52,7 @@ class Verdicts:
 
     @classmethod
     def load(cls, run: str | Path) -> Verdicts:
-        from pilworld.metrics.pairs import load_pairs
+        from pilworld.data.pairs import load_pairs
         from pilworld.metrics.success import score_pairs
 
         out = {}

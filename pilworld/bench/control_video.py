@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import time
 from pathlib import Path
 from typing import Any
@@ -11,9 +12,14 @@ import numpy as np
 from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.control_video import ControlVideo
 from pilworld.control_video.examples import random_chunks
+from pilworld.control_video.robot_render import BACKENDS
+from pilworld.control_video.styles import STYLES, Style
+from pilworld.options.parse import parse_size
 from pilworld.types import ChunkSpec
 
 
@@ -90,3 +96,56 @@ def run_control_video_bench(
         "processes": 1,
         **machine_info(),
     }
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Γ's options, and a Γ⁺ style's (``--backend``, ``--starts``, ``--chunks-per-start``, ``--world-model``)."""
+    parser.add_argument(
+        "--style",
+        default="markers",
+        help=f"control-video style: {', '.join(STYLES)} (default markers, the paper's Γ: throughput bench)",
+    )
+    parser.add_argument("--backend", choices=BACKENDS, default="analytic", help="robot renderer (Γ⁺ styles)")
+    parser.add_argument("--starts", type=int, default=4, help="Γ⁺: held-out simulated starts (default 4)")
+    parser.add_argument("--chunks-per-start", type=int, default=10, help="Γ⁺: random chunks per start (default 10)")
+    parser.add_argument(
+        "--world-model",
+        type=Path,
+        default=None,
+        help="Γ⁺: world-model folder timed in the same run (default: v1, sim_small); 'none' skips it",
+    )
+    add_rig(parser)
+    parser.add_argument("--chunks", type=int, default=4000, help="random chunks per timed pass (default 4000)")
+    parser.add_argument("--batch", type=int, default=64, help="chunks per render_batch call (default 64)")
+    parser.add_argument("--size", default=None, help="WIDTHxHEIGHT (default: 128x128 for markers, the rig's for Γ⁺)")
+    parser.add_argument("--frames", "-K", type=int, default=15, help="K (default 15)")
+    parser.add_argument("--stride", type=int, default=3, help="Δ (default 3)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed passes; the best is reported (default 3)")
+    parser.add_argument("--seed", type=int, default=0)
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Γ's throughput (markers), or one Γ⁺ chunk's latency for any other ``--style``."""
+    spec = ChunkSpec(horizon=max(50, args.frames * args.stride), frames=args.frames, stride=args.stride)
+    style = Style.parse(args.style)
+    if style.name != "markers":
+        # Imported here: the Γ⁺ bench loads the robot renderer and a world model, which Γ's markers never need.
+        from pilworld.bench.gamma_plus import run_style
+
+        return run_style(args, style, spec)
+    result = run_control_video_bench(
+        args.rig,
+        chunks=args.chunks,
+        batch=args.batch,
+        size=parse_size(args.size or "128x128"),
+        spec=spec,
+        repeats=args.repeats,
+        seed=args.seed,
+        progress=not args.json,
+    )
+    line = (
+        f"control-video: {result['frames_per_s']:.0f} frames/s ({result['image_size'][0]}x{result['image_size'][1]}, "
+        f"K={result['K']}), {result['ms_per_chunk_single_p50']:.3f} ms per single chunk"
+    )
+    return emit(args, result, [line])

@@ -6,6 +6,7 @@ default) are written to a temporary dataset, read back, and cut into training cl
 
 from __future__ import annotations
 
+import argparse
 import tempfile
 import time
 from pathlib import Path
@@ -17,6 +18,8 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json
+from pilworld.bench.output import emit
 from pilworld.data.clip_dataset import ClipDataset
 from pilworld.data.episode import Episode
 from pilworld.data.info import disk_bytes
@@ -103,3 +106,24 @@ def run_data_bench(
         "processes": 1,
         **machine_info(),
     }
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--episodes", type=int, default=6, help="synthetic episodes (default 6)")
+    parser.add_argument("--length", type=int, default=300, help="frames per episode (default 300)")
+    parser.add_argument("--size", type=int, default=128, help="image side in pixels, 3 views (default 128)")
+    parser.add_argument("--video-mode", default="h264", choices=["h264", "lossless", "av1"])
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write, read and clip rates in one line, then with ``--json`` the whole result."""
+    result = run_data_bench(
+        episodes=args.episodes, length=args.length, size=args.size, video_mode=args.video_mode, progress=not args.json
+    )
+    line = (
+        f"data ({result['video_mode']}, 3 views at {args.size}x{args.size}): write {result['write_frames_per_s']:.0f} "
+        f"frames/s, read {result['read_frames_per_s']:.0f} frames/s, clips {result['clips_per_s']:.0f}/s "
+        f"({result['clips_per_s_cold']:.0f}/s while decoding)"
+    )
+    return emit(args, result, [line])

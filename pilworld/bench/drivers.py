@@ -19,6 +19,7 @@ timer), so the gripper figures are the drivers' own overhead.
 
 from __future__ import annotations
 
+import argparse
 import math
 import time
 from collections.abc import Callable
@@ -29,6 +30,8 @@ import numpy as np
 from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json
+from pilworld.bench.output import emit
 from pilworld.types import ARM_LAYOUT
 
 FAKE_RIG = Path(__file__).resolve().parents[2] / "configs" / "rig" / "fake_dual_ur5e.yaml"
@@ -140,3 +143,23 @@ def run_drivers_bench(
         "camera_read_latest": read_latest,
         "machine": machine_info(),
     }
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--rig", type=Path, default=None, help="rig file with a hardware.fake section (default: the fake rig)"
+    )
+    parser.add_argument("--seconds", type=float, default=10.0, help="how long the robot is driven (default 10)")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    r = run_drivers_bench(args.rig or FAKE_RIG, args.seconds, progress=not args.json)
+    line = (
+        f"drivers: servo {r['servo_rate_hz']} Hz (target {r['servo_rate_target_hz']}), p99 period "
+        f"{r['servo_period_p99_ms']} ms; round trips: dynamixel {r['dynamixel_roundtrip_ms']} ms, "
+        f"robotiq {r['robotiq_roundtrip_ms']} ms; cameras {r['camera_fps']} fps (served {r['camera_fps_served']})"
+        f"; calls (p99): gripper set_target {r['gripper_set_target_p99_ms']} ms, "
+        f"camera read_latest {r['camera_read_latest_p99_ms']} ms"
+    )
+    return emit(args, r, [line])

@@ -14,6 +14,7 @@ does not.
 
 from __future__ import annotations
 
+import argparse
 import time
 from pathlib import Path
 from typing import Any
@@ -24,11 +25,13 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.examples import random_chunks, starting_at
 from pilworld.control_video.gamma_plus import GammaPlus
 from pilworld.control_video.robot_render import Backend
 from pilworld.control_video.styles import Style
+from pilworld.options.parse import parse_size
 from pilworld.types import ChunkSpec, Observation
 from pilworld.world_model import V1_CHECKPOINT
 
@@ -181,3 +184,33 @@ def run_gamma_plus_bench(
         result["world_model"] = wm
         result["ratio_to_world_model"] = result["ms_per_chunk_p50"] / wm["chunk_latency_ms"]
     return result
+
+
+def run_style(args: argparse.Namespace, style: Style, spec: ChunkSpec) -> int:
+    """``pilworld bench control-video`` for a Γ⁺ ``style`` (the options of :mod:`pilworld.bench.control_video`)."""
+    model: Path | None = SHIPPED_MODEL if args.world_model is None else args.world_model
+    if model is not None and str(model).lower() == "none":
+        model = None
+    result = run_gamma_plus_bench(
+        args.rig,
+        style.name,
+        backend=args.backend,
+        starts=args.starts,
+        chunks_per_start=args.chunks_per_start,
+        repeats=args.repeats,
+        world_model=model,
+        size=parse_size(args.size) if args.size else None,
+        spec=spec,
+        seed=args.seed,
+        progress=not args.json,
+    )
+    line = (
+        f"control-video {result['style']}: {result['ms_per_chunk_p50']:.1f} ms per chunk "
+        f"(K={result['K']} × {len(result['views'])} views at {result['image_size'][0]}x{result['image_size'][1]})"
+    )
+    if "world_model" in result:
+        line += (
+            f"; world model {result['world_model']['chunk_latency_ms']:.1f} ms per chunk in the same run "
+            f"(ratio {result['ratio_to_world_model']:.2f})"
+        )
+    return emit(args, result, [line])

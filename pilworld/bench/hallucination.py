@@ -17,6 +17,7 @@ the first cases that were not detected (to look at).
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections import Counter
 from pathlib import Path
@@ -24,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
 from pilworld.data.reader import EpisodeStore
@@ -32,7 +35,8 @@ from pilworld.judges.faults import FAULTS, FaultError, inject
 from pilworld.judges.hallucination import HallucinationDetector
 from pilworld.judges.hallucination_checks import Thresholds
 
-DETECTION_TARGET = 0.90  # issue #7: frame k ± 1 found in at least 90 % of faulted episodes
+# The acceptance of docs/judges.md, "Injected faults and the benchmark":
+DETECTION_TARGET = 0.90  # frame k ± 1 found in at least 90 % of faulted episodes
 FALSE_POSITIVE_LIMIT = 0.10  # ... and at most 10 % of clean episodes flagged
 
 
@@ -194,3 +198,20 @@ def _origin(store: EpisodeStore, index: int, row: dict[str, Any]) -> str:
     if "origin" in table.column_names and table.num_rows:
         return str(table.column("origin")[0].as_py())
     return "real"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", type=Path, help="a dataset of real-branch episodes (e.g. from pilworld sim collect)")
+    add_rig(parser)
+    parser.add_argument("--per-fault", type=int, default=None, help="faulted episodes per fault type (default: all)")
+    parser.add_argument("--seed", type=int, default=0)
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The result's scalar figures in one line (its lists and tables only with ``--json``)."""
+    r = run_hallucination_bench(
+        args.dataset, args.rig, seed=args.seed, per_fault=args.per_fault, progress=not args.json
+    )
+    summary = {k: v for k, v in r.items() if not isinstance(v, (list, dict))}
+    return emit(args, r, [", ".join(f"{k} {v}" for k, v in summary.items())])

@@ -7,7 +7,8 @@ collected dataset that carries the simulator checker's verdict (judge ``sim_chec
 round, ``tn``: both say failure), the judge's seconds per episode (decoding the videos is timed apart),
 and every disagreement with both sides' reasons. Nothing is written to the dataset.
 
-The acceptance measurement of issue #7 uses a fresh collection on seeds reserved for judge validation::
+The acceptance measurement (docs/judges.md, "Measured agreement") uses a fresh collection on seeds reserved
+for judge validation::
 
     pilworld sim collect --task all --checkpoint all --episodes 3 --seed 3000000 --out /tmp/judge_val --workers 2
 
@@ -16,12 +17,15 @@ and then ``run_judge_bench("/tmp/judge_val", RigConfig.load("configs/rig/sim_dua
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.data.outcomes import read_outcomes
 from pilworld.data.reader import EpisodeStore
@@ -118,3 +122,21 @@ def run_judge_bench(
         "disagreements": disagreements,
         "machine": machine_info(),
     }
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "dataset", type=Path, help="a dataset with sim_checker verdicts (e.g. from pilworld sim collect)"
+    )
+    add_rig(parser)
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The agreement overall and per task with its confusion matrix."""
+    r = run_judge_bench(args.dataset, RigConfig.load(args.rig), progress=not args.json)
+    lines = [f"judges: image-only judge agrees with the checker on {r['agreement']} of {r['n']} real episodes"]
+    lines += [
+        f"  {task}: {t['agreement']} of {t['n']}, confusion {t['confusion']}" for task, t in r["per_task"].items()
+    ]
+    return emit(args, r, lines)

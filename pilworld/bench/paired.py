@@ -18,6 +18,7 @@ run by name (``--variants pilworld_v1,ctrl_world,pilworld_3500,no_history,succes
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,12 +26,15 @@ from typing import Any
 
 from pilworld.bench.claims import Verdicts, agreement, paper_claims, steps
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import Column, emit, num, pct, table
 from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants, v2_variants
+from pilworld.options.bounds import at_least_one
 
 QUICK_CHECKPOINTS = ("scripted_step_01k", "scripted_step_30k")
 QUICK_SUBTASKS = 3
-# Issue #24's table: the shipped v2 and its equal-budget variants (v2's recipe, one switch each). v1 and its
-# 2026-11-22 baselines stay selectable by name (``--variants pilworld_v1,ctrl_world,...``).
+# The table of docs/RESULTS.md ("What is compared"): the shipped v2 and its equal-budget variants (v2's recipe,
+# one switch each). v1 and its 2026-11-22 baselines stay selectable by name (``--variants pilworld_v1,...``).
 FULL_VARIANTS = (
     "pilworld",
     "v2_paper_gamma",
@@ -111,7 +115,7 @@ def select_variants(quick: bool, names: Sequence[str] | None = None) -> list[Mod
 
     A name of the form ``NAME=PATH`` adds the model folder at PATH as variant NAME (:func:`custom_variant`).
     """
-    every = {v.name: v for v in standard_variants() + v2_variants()}  # issue #24's rows: by name until trained
+    every = {v.name: v for v in standard_variants() + v2_variants()}  # the equal-budget rows: by name until trained
     if names:
         unknown = [n for n in names if n not in every and "=" not in n]
         if unknown:
@@ -168,7 +172,7 @@ def summarize_variant(result: dict[str, Any]) -> dict[str, Any]:
 
 def failure_faithfulness(run: str) -> dict[str, Any]:
     """On pairs whose real branch failed, the share whose imagined branch failed too (and the converse)."""
-    from pilworld.metrics.pairs import load_pairs
+    from pilworld.data.pairs import load_pairs
     from pilworld.metrics.success import score_pairs
 
     scores = score_pairs(load_pairs(run))
@@ -232,3 +236,83 @@ def run_paired_bench(
     # What each step of the Γ⁺ ladder buys, paired against the step before it.
     out_json["gamma_plus_steps"] = steps(verdicts, GAMMA_PLUS_ROWS)
     return out_json
+
+
+# The summary table, one row per variant (pilworld/bench/output.py aligns it).
+PAIRED_COLUMNS = (
+    Column("variant", 15, "variant", align="<"),
+    Column("SR_real", 8, "sr_real", pct),
+    Column("SR_imag", 8, "sr_imag", pct),
+    Column("|ΔSR|", 7, "abs_delta_sr", pct),
+    Column("HFR", 6, "hfr", num),
+    Column("Pearson", 8, "pearson", num),
+    Column("MMRV", 6, "mmrv", num),
+    Column("head PSNR", 9, lambda row: row["head"].get("psnr_pooled"), num, align="<", sep="  "),
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="3 tasks × 2 checkpoints × 3 subtasks, shipped v2, paper-faithful, Ctrl-World-style",
+    )
+    add_rig(parser)
+    parser.add_argument(
+        "--out", type=Path, default=None, help="run folders (default bench_runs/paired-quick|full); resumed"
+    )
+    parser.add_argument(
+        "--variants",
+        default="",
+        help="comma-separated variants (default: by mode; see docs/RESULTS.md); NAME=PATH adds a model folder",
+    )
+    parser.add_argument(
+        "--subtasks",
+        type=int,
+        default=None,
+        help="subtasks per task × checkpoint (default 3 quick / 8: 120 pairs per variant)",
+    )
+    parser.add_argument("--seed", type=int, default=None, help="first layout seed (default 6000000)")
+    parser.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    parser.add_argument(
+        "--real-from", type=Path, default=None, help="copy every variant's real branches from this run folder"
+    )
+    parser.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/paired.png)")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The table of every variant and its chart (``--chart``, default OUT/paired.png)."""
+    # Imported here: the chart needs matplotlib, which the other users of this module do not.
+    from pilworld.bench.charts import paired_table_chart
+
+    at_least_one(args, "subtasks")
+    out = args.out or Path("bench_runs") / ("paired-quick" if args.quick else "paired-full")
+    names = [n.strip() for n in args.variants.split(",") if n.strip()] or None
+    r = run_paired_bench(
+        out=out,
+        rig=args.rig,
+        quick=args.quick,
+        variants=names,
+        subtasks=args.subtasks,
+        seed=args.seed,
+        workers=args.workers,
+        progress=not args.json,
+        real_from=args.real_from,
+    )
+    r["chart"] = str(paired_table_chart(r["variants"], r["targets"], args.chart or Path(out) / "paired.png"))
+    return emit(args, r, summary_lines(r))
+
+
+def summary_lines(r: dict[str, Any]) -> list[str]:
+    p = r["protocol"]
+    rows = [
+        {"variant": name, **row["overall"], "head": (row["single_step"]["per_view"] or {}).get("cam_high", {})}
+        for name, row in r["variants"].items()
+    ]
+    return [
+        f"paired ({'quick' if r['quick'] else 'full'}): {len(p['tasks'])} tasks × {len(p['checkpoints'])} checkpoints "
+        f"× {p['subtasks']} subtasks, R={p['rounds']}, seeds from {p['seed0']}",
+        *table(PAIRED_COLUMNS, rows),
+        f"  targets: |ΔSR| ≤ 5 points, HFR ≥ 0.85, Pearson ≥ 0.95; chart {r['chart']}",
+    ]

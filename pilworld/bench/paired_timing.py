@@ -8,6 +8,7 @@ control steps with rendering, or Γ plus one world-model call), and the realtime
 
 from __future__ import annotations
 
+import argparse
 import json
 import tempfile
 import time
@@ -16,6 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
+from pilworld.options.bounds import at_least_one
 from pilworld.paired.runner import ORIGINS, TIMINGS_FILE, PairedConfig, paired_run
 from pilworld.types import ChunkSpec
 
@@ -79,3 +83,34 @@ def bench_paired(
             "realtime_factor": round(robot_seconds / float(np.median(seconds)), 2),
         }
     return result
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_rig(parser)
+    parser.add_argument("--task", default="sort_cubes", help="task (default sort_cubes)")
+    parser.add_argument("--checkpoint", default="", help="policy checkpoint (default: the rig's best)")
+    parser.add_argument("--subtasks", type=int, default=3, help="paired subtasks (default 3)")
+    parser.add_argument("--rounds", type=int, default=5, help="closed-loop rounds per subtask (default 5)")
+    parser.add_argument("--world-model", default="", help="world-model folder (default: the packaged checkpoint)")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """One line per branch (real, imagined): seconds per subtask, policy and env per round, realtime factor."""
+    at_least_one(args, "subtasks", "rounds")
+    r = bench_paired(
+        rig=str(args.rig),
+        task=args.task,
+        checkpoint=args.checkpoint,
+        subtasks=args.subtasks,
+        rounds=args.rounds,
+        world_model=args.world_model,
+        progress=not args.json,
+    )
+    lines = [
+        f"paired {origin}: {b['seconds_per_subtask']['median']} s per subtask (median of {r['subtasks']}), "
+        f"policy {b['policy_ms_per_round']['median']} ms and env {b['env_ms_per_round']['median']} ms per round, "
+        f"realtime x{b['realtime_factor']}"
+        for origin, b in ((o, r[o]) for o in ("real", "imagined"))
+    ]
+    return emit(args, r, lines)

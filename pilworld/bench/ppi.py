@@ -19,6 +19,8 @@ size gain (measured as (classical width / PPI width)², and by formula).
 
 from __future__ import annotations
 
+import argparse
+import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +29,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pilworld.bench.flags import add_json
+from pilworld.bench.output import Column, emit, num, table
+from pilworld.options.bounds import at_least_one
 from pilworld.ppi.estimator import ess_gain_formula, ppi_mean_batch, width_ratio_formula
 from pilworld.ppi.outcomes import read_run_outcomes
 
@@ -227,3 +232,38 @@ def run_ppi_bench(
         "checks": checks,
         "seconds": round(time.monotonic() - t0, 1),
     }
+
+
+# The summary table, one row per setting (pilworld/bench/output.py aligns it).
+PPI_COLUMNS = (
+    Column("method", 7, "method", align="<"),
+    Column("predictor", 14, "predictor", align="<", sep=" "),
+    Column("n", 3, "n", sep=" "),
+    Column("N", 4, "N", sep=" "),
+    Column("cov PPI", 8, "coverage_ppi", lambda x: num(x, 3), sep=" "),
+    Column("cov cl.", 8, "coverage_classical", lambda x: num(x, 3), sep=" "),
+    Column("ratio", 6, "width_ratio", lambda x: num(x, 3), sep=" "),
+    Column("formula", 8, "width_ratio_formula", lambda x: num(x, 3), sep=" "),
+    Column("ESS gain", 9, "ess_gain_measured", num, sep=" "),
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--pool", type=Path, default=None, help="a judged paired run to draw from (default: run one)")
+    parser.add_argument("--out", type=Path, default=Path("bench_runs/ppi"), help="where the pool is run (default)")
+    parser.add_argument("--draws", type=int, default=None, help="draws per checkpoint and setting (default 2000)")
+    parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
+    parser.add_argument("--quick", action="store_true", help="a 60-pair pool and 200 draws (≤ 5 minutes)")
+    add_json(parser, "print the whole result as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    """The pool, one table row per setting, and the checks."""
+    at_least_one(args, "draws")
+    r = run_ppi_bench(
+        pool=args.pool, out=args.out, quick=args.quick, draws=args.draws, seed=args.seed, progress=not args.json
+    )
+    lines = [f"pool {r['pool']}: real success rate per checkpoint {r['pool_truth']}, per-pair rho {r['pool_rho']}"]
+    lines += table(PPI_COLUMNS, r["settings"], indent="")
+    lines.append("checks: " + json.dumps(r["checks"]))
+    return emit(args, r, lines)

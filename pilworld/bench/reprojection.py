@@ -22,7 +22,6 @@ commanded joints).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from dataclasses import dataclass
@@ -34,6 +33,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.cameras import RigCameras
 from pilworld.control_video.lag import estimate_lag, lagged_poses
@@ -518,12 +519,12 @@ def _camera_motion(cameras: RigCameras, clip: Clip, view: str) -> float:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The bench's options, for ``python -m pilworld.bench.reprojection`` and ``pilworld bench reprojection``."""
-    parser.add_argument("--rig", type=Path, default=SIM_RIG, help="rig config (default: the simulated rig)")
+    add_rig(parser)
     parser.add_argument("--quick", action="store_true", help="one task, one run, one subtask, 64x64 (seconds)")
     parser.add_argument("--episodes", type=int, default=None, help="runs per task (default 3; quick 1)")
     parser.add_argument("--subtasks", type=int, default=None, help="subtasks per run (default 3; quick 1)")
     parser.add_argument("--size", type=int, default=None, help="image size in pixels (default 128; quick 64)")
-    parser.add_argument("--json", action="store_true", help="print the JSON object as the last line")
+    add_json(parser, "print the JSON object as the last line")
     parser.add_argument("--figure", type=Path, default=None, help="also write an example PNG (quick clips)")
     parser.add_argument(
         "--masks",
@@ -558,11 +559,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"bench reprojection: error: {exc}", file=sys.stderr)
         return 2
-    if args.json:
-        print(json.dumps(result))
-    else:
-        print(format_table(result))
-    return 0
+    return emit(args, result, () if args.json else [format_table(result)])
 
 
 def format_table(result: dict[str, Any]) -> str:

@@ -37,6 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.robot_model import (
     BOX,
@@ -364,6 +366,38 @@ def run_robot_render_accuracy(
         _diagnostic_png(png, gt, parts, worst_index)
         result["diagnostic_png"] = str(png)
     return result
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``pilworld bench robot-render``'s options (``python -m pilworld.bench.robot_render`` has its own)."""
+    add_rig(parser)
+    parser.add_argument("--configs-per-arm", type=int, default=200, help="random configurations per arm (default 200)")
+    parser.add_argument(
+        "--backend", choices=BACKENDS, default="analytic", help="renderer under test (default analytic)"
+    )
+    parser.add_argument(
+        "--task", default="sort_cubes", help="task whose scene is the ground truth (default sort_cubes)"
+    )
+    parser.add_argument("--out", type=Path, default=None, help="folder for the worst-case diagnostic PNG")
+    parser.add_argument("--seed", type=int, default=0)
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The IoU per view (mean and worst), then with ``--json`` the whole result."""
+    result = run_robot_render_accuracy(
+        args.rig,
+        configs_per_arm=args.configs_per_arm,
+        seed=args.seed,
+        backend=args.backend,
+        task=args.task,
+        out=args.out,
+    )
+    lines = [
+        f"{view:16s} mean IoU {r['mean_iou']:.4f}  worst {r['worst_iou']:.4f} (config {r['worst_config']})"
+        for view, r in result["views"].items()
+    ]
+    return emit(args, result, lines)
 
 
 def main(argv: list[str] | None = None) -> int:

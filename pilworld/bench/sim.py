@@ -12,12 +12,18 @@ process and the ratios reported (``baseline_ratio``), the comparison that surviv
 
 from __future__ import annotations
 
+import argparse
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import emit
+from pilworld.collection.tasks import APPEARANCES
+from pilworld.options.bounds import SIM_REPEATS, TRY_SUBTASKS, WORKERS, bounded, check_count
+from pilworld.options.parse import parse_names
 from pilworld.types import ChunkSpec
 
 if TYPE_CHECKING:
@@ -159,3 +165,86 @@ def run_sim_bench(
         result["spread_ok"] = all(max(r.values()) >= 0.9 and min(r.values()) <= 0.4 for r in rates.values())
         result["mean_by_checkpoint"] = {c: round(float(np.mean([rates[t][c] for t in names])), 3) for c in ckpts}
     return result
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_rig(parser)
+    parser.add_argument(
+        "--task", default="sort_cubes", help="task (name or task file) for the speed figures (default sort_cubes)"
+    )
+    parser.add_argument(
+        "--subtasks",
+        type=int,
+        default=None,
+        help="also measure success rates over N subtask starts per task [1..1,000] (default: speed figures only)",
+    )
+    parser.add_argument(
+        "--tasks",
+        default="all",
+        help="tasks for the success rates: names or task files, comma-separated, or all (the paper's three; default)",
+    )
+    parser.add_argument("--appearance", default="flat", choices=APPEARANCES, help="scene appearance (default flat)")
+    parser.add_argument(
+        "--baseline",
+        default=None,
+        choices=APPEARANCES,
+        help="also time this appearance, alternating with --appearance, and report their ratios (default: none)",
+    )
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help=bounded("speed measurements per appearance; medians reported (default 1)", SIM_REPEATS),
+    )
+    parser.add_argument("--checkpoints", default="all", help="comma-separated scripted checkpoints (default all)")
+    parser.add_argument(
+        "--workers", type=int, default=None, help="processes for the success rates (default: CPUs) [1..256]"
+    )
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Every flag checked before the rig starts, then the speed figures (and success rates) in a few lines."""
+    from pilworld.collection.tasks import require_simulated, resolve_tasks
+    from pilworld.policies.scripted import CHECKPOINTS
+
+    check_count(args.subtasks, "--subtasks", TRY_SUBTASKS)
+    check_count(args.workers, "--workers", WORKERS)
+    check_count(args.repeats, "--repeats", SIM_REPEATS)
+    (task,) = resolve_tasks([args.task], what="--task")
+    tasks = resolve_tasks(args.tasks, what="--tasks")
+    require_simulated([task], what="--task")
+    require_simulated(tasks, what="--tasks")
+    ckpts = parse_names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
+    result = run_sim_bench(
+        str(args.rig),
+        task=task,
+        subtasks=args.subtasks or 0,
+        tasks=list(tasks),
+        appearance=args.appearance,
+        checkpoints=ckpts,
+        workers=args.workers,
+        progress=not args.json,
+        repeats=args.repeats,
+        baseline=args.baseline,
+    )
+    return emit(args, result, summary_lines(result, args.appearance, args.repeats))
+
+
+def summary_lines(result: dict[str, Any], appearance: str, repeats: int) -> list[str]:
+    """Speed, the baseline's ratios when one was timed, and the success rates per task."""
+    lines = [
+        f"sim ({appearance}): {result['physics_steps_per_s']:.0f} physics steps/s, "
+        f"{result['render_ms_per_view']:.1f} ms per view, realtime factor {result['realtime_factor']:.1f}"
+    ]
+    if "baseline" in result:
+        b, r = result["baseline"], result["baseline_ratio"]
+        lines.append(
+            f"  {b['appearance']}: {b['render_ms_per_view']:.1f} ms per view, realtime factor "
+            f"{b['realtime_factor']:.1f}; {appearance} / {b['appearance']}: "
+            f"render ×{r['render_ms_per_view']:.2f}, "
+            f"realtime ×{r['realtime_factor']:.2f} (median of {repeats}, measured side by side)"
+        )
+    for task, rates in result.get("success_rates", {}).items():
+        lines.append(f"  {task}: " + ", ".join(f"{c} {r:.2f}" for c, r in rates.items()))
+    return lines

@@ -1,9 +1,10 @@
 """``pilworld bench speed-accuracy``: chunk latency against closed-loop accuracy, for every model size and step count.
 
-The question (issue #24): which is the **smallest model that predicts closed-loop outcomes**, and what does
-each step up in size or in sampling steps buy? Accuracy here is what the bench is for — whether the imagined
-branch reaches the real branch's verdict — so the front and the knee are chosen on closed-loop |ΔSR| and HFR;
-single-step image error is kept as a secondary column (it ranked v1's presets, and v1 fails every rollout).
+The question (docs/RESULTS.md, section 2): which is the **smallest model that predicts closed-loop
+outcomes**, and what does each step up in size or in sampling steps buy? Accuracy here is what the bench is
+for — whether the imagined branch reaches the real branch's verdict — so the front and the knee are chosen on
+closed-loop |ΔSR| and HFR; single-step image error is kept as a secondary column (it ranked v1's presets, and
+v1 fails every rollout).
 
 **Points.** One point per world model and number of sampling steps:
 
@@ -51,17 +52,21 @@ of which 250 s closed loop; on idle cores the old quick mode's parts (172 s for 
 
 **Front and knee.** The front is the set of points with closed-loop figures that no other point beats on
 (latency ↓, |ΔSR| ↓, HFR ↑). The **knee** — the smallest model that reaches the accuracy — is, among the
-real-time points (realtime factor ≥ 1) whose |ΔSR| is within :func:`knee_tolerances` of the best point's
-and whose HFR is within :data:`KNEE_HFR` of the best HFR, the one with the **fewest parameters**, ties by
-latency. ``shipped_default`` compares it with ``v2_shipped`` (``agrees``, else what the default should
-become). ``steps_buy`` gives, per v1 model, what 2…16 steps change against 1 step; ``size_buy`` what each
-size step changes (tiny 32² → tiny 64² → small 128² → base; v2 width 8 → 16 → 32 and work size 32² → 64²;
-and v1 small → v2, another model rather than a size). ``single_step_knee`` is the old rule, for contrast:
-the fastest real-time point of the (latency, head PSNR) front within :data:`KNEE_DB` of the best PSNR.
+real-time points (realtime factor ≥ 1) whose |ΔSR| is within
+:func:`~pilworld.bench.speed_accuracy_front.knee_tolerances` of the best point's and whose HFR is within
+:data:`~pilworld.bench.speed_accuracy_front.KNEE_HFR` of the best HFR, the one with the **fewest
+parameters**, ties by latency. ``shipped_default`` compares it with ``v2_shipped`` (``agrees``, else what the
+default should become). ``steps_buy`` gives, per v1 model, what 2…16 steps change against 1 step;
+``size_buy`` what each size step changes (tiny 32² → tiny 64² → small 128² → base; v2 width 8 → 16 → 32 and
+work size 32² → 64²; and v1 small → v2, another model rather than a size). ``single_step_knee`` is the old
+rule, for contrast: the fastest real-time point of the (latency, head PSNR) front within
+:data:`~pilworld.bench.speed_accuracy_front.KNEE_DB` of the best PSNR. These rules live in
+:mod:`pilworld.bench.speed_accuracy_front`; docs/RESULTS.md, section 2, has the figures.
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -71,20 +76,26 @@ from typing import Any
 import numpy as np
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import Column, emit, num, pct, table
+from pilworld.bench.speed_accuracy_front import (
+    SHIPPED,
+    SINGLE_STEP_OBJECTIVES,
+    choose_knee,
+    choose_single_step_default,
+    pareto_front,
+    shipped_verdict,
+    size_buy,
+    steps_buy,
+)
 from pilworld.bench.variants import ModelVariant, PairedProtocol, bench_model, evaluate_variants
+from pilworld.options.bounds import at_least_one
 
 STEPS = (1, 2, 4, 8, 16)
 QUICK_STEPS = (1, 4, 16)
 QUICK_CLOSED_LOOP_STEPS = (1,)  # quick mode: v1 points in closed loop (every v2 point runs)
 CLOSED_LOOP_SUBTASKS = 3  # per task × checkpoint: 18 pairs per point
 QUICK_CLOSED_LOOP_SUBTASKS = 1  # 6 pairs per point
-# The knee's tolerances. SR over N pairs moves in steps of 1/N, so two points one pair apart are not told apart
-# by the protocol (at 18 pairs, the 95 % interval of |ΔSR| is ±10 points or more); 5 points is the project's
-# |ΔSR| target, the tolerance never goes below it. HFR is a per-frame rate, steadier than SR: 0.05 is about its
-# 95 % half-width at 18 pairs (v2 on 300 pairs: ±0.018, ×√(300/18) ≈ 4), and 0.85 → 0.90 is the target's scale.
-KNEE_ABS_DSR_FLOOR = 0.05
-KNEE_HFR = 0.05
-KNEE_DB = 0.25  # the single-step knee (for contrast): head-view PSNR within this of the best
 QUICK_CLIPS = 24
 # Single-step PSNR is the secondary column; 48 clips (each 8 frames x 3 views) halve the stage that was the
 # set's largest after the paired bench (17 points x 96 clips: 1,392 s of 1,886 on a busy machine, 2026-12-05).
@@ -102,9 +113,7 @@ LATENCY = (
     "call alone in the same rounds"
 )
 HEAD = "cam_high"
-SHIPPED = "v2_shipped"
 V2_NO_STEPS = "v2 is deterministic: one pass, no sampling steps (the steps argument is ignored)"
-EPS = 1e-9  # float slack of the tolerance comparisons (1/18 + a difference of pair counts)
 
 # v2 at other sizes, all else as shipped (same data, cache, steps): name → config fields, what changes.
 V2_SIZES: tuple[tuple[str, Mapping[str, int], str], ...] = (
@@ -112,18 +121,6 @@ V2_SIZES: tuple[tuple[str, Mapping[str, int], str], ...] = (
     ("v2_w32", {"width": 32}, "U-Net width 32 (shipped 16)"),
     ("v2_work64", {"work_size": 64}, "U-Net work size 64x64 (shipped 32x32)"),
 )
-# The size steps of size_buy: (from model, to model, what). v1 models compare at 1 step.
-SIZE_STEPS: tuple[tuple[str, str, str], ...] = (
-    ("tiny_32", "tiny_64", "v1 tiny: image 32x32 -> 64x64"),
-    ("tiny_64", "small_128", "v1: tiny 64x64 -> small 128x128 (preset and image)"),
-    ("small_128", "base_128", "v1: small -> base preset (base untrained: latency only)"),
-    ("v2_w8", SHIPPED, "v2: U-Net width 8 -> 16"),
-    (SHIPPED, "v2_w32", "v2: U-Net width 16 -> 32"),
-    (SHIPPED, "v2_work64", "v2: U-Net work size 32x32 -> 64x64"),
-    ("small_128", SHIPPED, "v1 small -> v2 (another model, not a size step)"),
-)
-CLOSED_LOOP_OBJECTIVES: tuple[tuple[str, int], ...] = (("chunk_latency_ms", -1), ("abs_delta_sr", -1), ("hfr", 1))
-SINGLE_STEP_OBJECTIVES: tuple[tuple[str, int], ...] = (("chunk_latency_ms", -1), ("psnr_head", 1))
 
 
 @dataclass(frozen=True)
@@ -273,184 +270,6 @@ class _Timed:
                 self.seconds.append(time.perf_counter() - t)
 
         return timed
-
-
-# ---------------------------------------------------------------------- front, knee, what each step buys
-
-
-def _scored(p: Mapping[str, Any], keys: Sequence[str]) -> bool:
-    return not p.get("untrained") and not p.get("skipped") and all(p.get(k) is not None for k in keys)
-
-
-def pareto_front(
-    points: Sequence[Mapping[str, Any]], objectives: Sequence[tuple[str, int]] = CLOSED_LOOP_OBJECTIVES
-) -> list[str]:
-    """Ids of the points not dominated on ``objectives`` ((key, +1 higher is better / −1 lower is better)): no
-    other point is at least as good on every one and better on one. Untrained, skipped and unmeasured points
-    take no part. Sorted by latency."""
-    keys = [k for k, _ in objectives]
-    scored = [p for p in points if _scored(p, keys)]
-
-    def beats(q: Mapping[str, Any], p: Mapping[str, Any]) -> bool:
-        no_worse = all(s * q[k] >= s * p[k] for k, s in objectives)
-        return no_worse and any(s * q[k] > s * p[k] for k, s in objectives)
-
-    front = [p for p in scored if not any(q is not p and beats(q, p) for q in scored)]
-    return [p["id"] for p in sorted(front, key=lambda p: (p["chunk_latency_ms"], p["id"]))]
-
-
-def knee_tolerances(pairs: int) -> dict[str, float]:
-    """How far from the best a point may be and still "reach the accuracy" on a protocol of ``pairs`` pairs."""
-    if pairs < 1:
-        raise ValueError(f"pairs: expected at least 1, got {pairs}")
-    return {"abs_delta_sr": round(max(KNEE_ABS_DSR_FLOOR, 1.0 / pairs), 4), "hfr": KNEE_HFR}
-
-
-def choose_knee(points: Sequence[Mapping[str, Any]], front: Sequence[str], *, pairs: int) -> dict[str, Any]:
-    """The smallest model that reaches the closed-loop accuracy (see the module docstring)."""
-    scored = [p for p in points if _scored(p, ("chunk_latency_ms", "abs_delta_sr", "hfr"))]
-    if not scored:
-        raise ValueError(
-            "speed-accuracy: no point has a closed-loop accuracy (|ΔSR| and HFR of a trained model); "
-            "nothing to choose the knee from"
-        )
-    tol = knee_tolerances(pairs)
-    best = min(scored, key=lambda p: (p["abs_delta_sr"], -p["hfr"], p["chunk_latency_ms"], p["id"]))
-    best_hfr = max(p["hfr"] for p in scored)
-    near_dsr = [p for p in scored if p["abs_delta_sr"] <= best["abs_delta_sr"] + tol["abs_delta_sr"] + EPS]
-    reach = [p for p in near_dsr if p["hfr"] >= best_hfr - tol["hfr"] - EPS]
-    rule = (
-        f"fewest parameters (ties: fastest) among the real-time points whose closed-loop |ΔSR| is within "
-        f"{tol['abs_delta_sr']:.3f} of the best ({100 * best['abs_delta_sr']:.1f} points, {best['id']}) and whose "
-        f"HFR is within {tol['hfr']:.2f} of the best ({best_hfr:.3f})"
-    )
-    if not reach:  # the best |ΔSR| and the best HFR are far apart: |ΔSR|, the headline figure, decides
-        reach = near_dsr
-        rule += "; no point reaches both, so the |ΔSR| tolerance alone"
-    realtime = [p for p in reach if p["realtime_factor"] >= 1.0]
-    if realtime:
-        pick = min(realtime, key=lambda p: (p["params"], p["chunk_latency_ms"], p["id"]))
-    else:
-        pick = min(reach, key=lambda p: (p["chunk_latency_ms"], p["id"]))
-        rule += "; none of them keeps real time, so the fastest of them"
-    return {
-        "id": pick["id"],
-        "family": pick.get("family"),
-        "preset": pick["preset"],
-        "size": pick["size"],
-        "steps": pick["steps"],
-        "params": pick["params"],
-        "chunk_latency_ms": pick["chunk_latency_ms"],
-        "realtime_factor": pick["realtime_factor"],
-        "abs_delta_sr": pick["abs_delta_sr"],
-        "hfr": pick["hfr"],
-        "sr_imag": pick.get("sr_imag"),
-        "psnr_head": pick.get("psnr_head"),
-        "on_front": pick["id"] in front,
-        "best_id": best["id"],
-        "best_abs_delta_sr": best["abs_delta_sr"],
-        "best_hfr": best_hfr,
-        "tolerances": tol,
-        "pairs": pairs,
-        "reaching": sorted(p["id"] for p in reach),
-        "rule": rule,
-    }
-
-
-def choose_single_step_default(points: Sequence[Mapping[str, Any]], front: Sequence[str]) -> dict[str, Any]:
-    """The old knee, on single-step accuracy: the fastest real-time point of the (latency, head PSNR) front
-    within :data:`KNEE_DB` of the best head-view PSNR (the fastest front point when none keeps real time)."""
-    on_front = [p for p in points if p["id"] in front and _scored(p, ("psnr_head",))]
-    if not on_front:
-        raise ValueError("speed-accuracy: no point has a single-step accuracy (nothing to choose from)")
-    best = max(p["psnr_head"] for p in on_front)
-    good = [p for p in on_front if p["psnr_head"] >= best - KNEE_DB and p["realtime_factor"] >= 1.0]
-    pick = min(good or on_front, key=lambda p: p["chunk_latency_ms"])
-    return {
-        "id": pick["id"],
-        "preset": pick["preset"],
-        "size": pick["size"],
-        "steps": pick["steps"],
-        "chunk_latency_ms": pick["chunk_latency_ms"],
-        "psnr_head": pick["psnr_head"],
-        "best_psnr_head": best,
-        "front_ids": list(front),
-        "rule": f"fastest real-time point of the (latency, head PSNR) front within {KNEE_DB} dB of the best",
-    }
-
-
-def _delta(a: Mapping[str, Any], b: Mapping[str, Any], key: str) -> float | None:
-    x, y = a.get(key), b.get(key)
-    return None if x is None or y is None else round(float(y) - float(x), 4)
-
-
-def _change(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
-    """What going from point ``a`` to point ``b`` changes (b − a; latency also as a ratio)."""
-    ratio = b["chunk_latency_ms"] / a["chunk_latency_ms"] if a["chunk_latency_ms"] else None
-    return {
-        "d_params": b["params"] - a["params"],
-        "d_latency_ms": _delta(a, b, "chunk_latency_ms"),
-        "latency_ratio": None if ratio is None else round(ratio, 3),
-        "d_abs_delta_sr": _delta(a, b, "abs_delta_sr"),
-        "d_hfr": _delta(a, b, "hfr"),
-        "d_sr_imag": _delta(a, b, "sr_imag"),
-        "d_psnr_head": _delta(a, b, "psnr_head"),
-    }
-
-
-def steps_buy(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """Per v1 model, what each step count above its fewest changes against the fewest (usually 1 step)."""
-    by_model: dict[str, list[Mapping[str, Any]]] = {}
-    for p in points:
-        if p.get("family") == "v1" and not p.get("skipped"):
-            by_model.setdefault(p["model"], []).append(p)
-    out = []
-    for model, pts in by_model.items():
-        pts = sorted(pts, key=lambda p: p["steps"])
-        for p in pts[1:]:
-            out.append({"model": model, "from": pts[0]["id"], "to": p["id"], "steps": [pts[0]["steps"], p["steps"]]})
-            out[-1].update(_change(pts[0], p))
-    return out
-
-
-def size_buy(points: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """What each size step of :data:`SIZE_STEPS` changes (v1 models at their fewest steps); a step to or from a
-    skipped model says so; one whose models are not in the sweep is left out."""
-    first: dict[str, Mapping[str, Any]] = {}
-    for p in sorted(points, key=lambda p: p.get("steps") or 0):
-        first.setdefault(p["model"], p)
-    out: list[dict[str, Any]] = []
-    for a, b, what in SIZE_STEPS:
-        if a not in first or b not in first:
-            continue
-        pa, pb = first[a], first[b]
-        row: dict[str, Any] = {"from": pa["id"], "to": pb["id"], "what": what}
-        skipped = [p["skipped"] for p in (pa, pb) if p.get("skipped")]
-        if skipped:
-            row["skipped"] = "; ".join(f"{p['id']} {p['skipped']}" for p in (pa, pb) if p.get("skipped"))
-        else:
-            row.update(_change(pa, pb))
-        out.append(row)
-    return out
-
-
-def shipped_verdict(points: Sequence[Mapping[str, Any]], knee: Mapping[str, Any]) -> dict[str, Any]:
-    """The shipped default (``v2_shipped``) against the knee: does it sit there, else what it should become."""
-    shipped = next((p for p in points if p["id"] == SHIPPED and not p.get("skipped")), None)
-    out: dict[str, Any] = {"id": SHIPPED, "agrees": knee["id"] == SHIPPED}
-    if shipped is not None:
-        keys = ("family", "params", "chunk_latency_ms", "realtime_factor", "abs_delta_sr", "hfr", "sr_imag")
-        out |= {k: shipped.get(k) for k in keys} | {"psnr_head": shipped.get("psnr_head")}
-    if out["agrees"]:
-        out["verdict"] = "the shipped default (v2) is the knee: the smallest model that reaches the accuracy"
-    elif shipped is None:
-        out["verdict"] = f"v2_shipped is not in this sweep; the knee is {knee['id']}"
-    else:
-        out["verdict"] = (
-            f"the knee is {knee['id']} ({knee['preset']} {knee['size']}, {knee['steps']} step(s), "
-            f"{knee['params']:,} parameters), not the shipped v2: the default should become {knee['id']}"
-        )
-    return out
 
 
 # ---------------------------------------------------------------------- the sweep
@@ -704,3 +523,118 @@ def _closed_loop(
         "points": [v.name for v in variants],
         "out": str(out),
     }
+
+
+# ---------------------------------------------------------------------- pilworld bench speed-accuracy
+
+# The summary table, one row per point (pilworld/bench/output.py aligns it).
+SPEED_ACCURACY_COLUMNS = (
+    Column("point", 14, "id", align="<"),
+    Column("params", 8, "params", lambda x: "—" if x is None else f"{x / 1e6:.2f}M"),
+    Column("round ms", 10, "chunk_latency_ms", lambda x: num(x, 1)),
+    Column("x realtime", 11, "realtime_factor", lambda x: num(x, 1)),
+    Column("|ΔSR|", 7, "abs_delta_sr", pct),
+    Column("HFR", 7, "hfr", lambda x: num(x, 3)),
+    Column("SR_imag", 8, "sr_imag", pct),
+    Column("head PSNR", 10, "psnr_head", num),
+    Column("front", 5, "front", align="<", sep="  "),
+    Column("", 0, "remark", align="<", sep=" "),
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="steps 1,4,16, 24 held-out clips, 3 timed rounds; closed loop on 6 pairs, v1 at 1 step and v2 only",
+    )
+    add_rig(parser)
+    parser.add_argument(
+        "--steps", default="", help="comma-separated v1 sampling steps (default 1,2,4,8,16; quick 1,4,16)"
+    )
+    parser.add_argument("--clips", type=int, default=None, help="held-out clips per point (default 24 quick / 96)")
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=None,
+        help="timed imagined rounds per point; the median is reported (default 10, quick 3)",
+    )
+    parser.add_argument(
+        "--subtasks", type=int, default=None, help="closed loop: subtasks per task × checkpoint (default 3, quick 1)"
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="closed-loop run folders (default bench_runs/speed-accuracy-full, or -quick)",
+    )
+    parser.add_argument("--workers", type=int, default=None, help="judging processes (default: one per CPU)")
+    parser.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/speed_accuracy.png)")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The sweep, its chart (``--chart``, default OUT/speed_accuracy.png), the points and the knee."""
+    # Imported here: the chart needs matplotlib, which the other users of this module do not.
+    from pilworld.bench.charts import speed_accuracy_chart
+
+    try:
+        steps = [int(s) for s in args.steps.split(",") if s.strip()] or None
+    except ValueError:
+        raise ValueError(f"--steps: expected comma-separated integers such as 1,2,4, got {args.steps!r}") from None
+    if steps and min(steps) < 1:
+        raise ValueError(f"--steps: expected integers >= 1, got {args.steps!r}")
+    at_least_one(args, "clips", "repeats", "subtasks")
+    out = args.out or Path("bench_runs") / ("speed-accuracy-quick" if args.quick else "speed-accuracy-full")
+    r = run_speed_accuracy(
+        rig=args.rig,
+        quick=args.quick,
+        steps=steps,
+        clips=args.clips,
+        repeats=args.repeats,
+        subtasks=args.subtasks,
+        out=out,
+        workers=args.workers,
+        progress=not args.json,
+    )
+    chart = speed_accuracy_chart(
+        r["points"],
+        r["front_ids"],
+        args.chart or out / "speed_accuracy.png",
+        knee=r["default"].get("id"),
+        shipped=r["shipped_default"]["id"],
+    )
+    r["chart"] = str(chart)
+    return emit(args, r, summary_lines(r))
+
+
+def summary_lines(r: dict[str, Any]) -> list[str]:
+    """The sweep in a line, every point's row, the knee and the shipped default, the single-step knee."""
+    d, shipped, loop = r["default"], r["shipped_default"], r["closed_loop"]
+    pairs = f"{loop['pairs_per_point']} closed-loop pairs per point" if "pairs_per_point" in loop else loop["skipped"]
+    rows = [
+        {
+            **p,
+            "front": "*" if p["id"] in r["front_ids"] else "",
+            "remark": p.get("skipped") or p.get("untrained") or p.get("closed_loop") or "",
+        }
+        for p in r["points"]
+    ]
+    lines = [
+        f"speed-accuracy ({'quick' if r['quick'] else 'full'}): {len(r['points'])} points, {pairs}, chart {r['chart']}",
+        f"  latency: {r['latency']['measures']}",
+        *table(SPEED_ACCURACY_COLUMNS, rows),
+    ]
+    if d.get("id") is None:
+        lines.append(f"  knee: none ({d['none']})")
+    else:
+        lines.append(
+            f"  knee: {d['id']} ({d['family']}{'' if d['preset'] == d['family'] else ' ' + d['preset']} "
+            f"{d['size']}, {d['params']:,} parameters), "
+            f"{d['chunk_latency_ms']:.1f} ms per round, |ΔSR| {pct(d['abs_delta_sr'])}, HFR {num(d['hfr'], 3)} "
+            f"— {d['rule']}"
+        )
+        lines.append(f"  shipped default ({shipped['id']}): {shipped['verdict']}")
+    single = r["single_step_knee"]
+    lines.append(f"  single-step knee (head PSNR, for contrast): {single.get('id') or single.get('none')}")
+    return lines

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
-from pilworld.metrics.pairs import load_pairs
 
 U8 = NDArray[np.uint8]
 

@@ -31,6 +31,7 @@ and Γ is drawn directly at that size, so every figure is at the model's resolut
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import time
@@ -43,11 +44,14 @@ import torch
 from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.output import Column, emit, num, table
 from pilworld.config.rig import RigConfig
-from pilworld.data.atomic import write_json
 from pilworld.data.clip_dataset import ClipDataset, default_cache_dir
 from pilworld.data.clips import ClipSpec
 from pilworld.data.reader import EpisodeStore
+from pilworld.io.atomic import write_json
+from pilworld.options.parse import parse_names
 from pilworld.world_model.base import FrozenWorldModel, PredictRequest, WorldModel, WorldModelBatch, WorldModelInfo
 from pilworld.world_model.batching import collate_clips, control_renderer, resize_images
 from pilworld.world_model.metrics import SingleStepScores, load_lpips
@@ -398,3 +402,130 @@ def run_world_model_bench(
         }
     )
     return dict(_rounded(result))
+
+
+# ---------------------------------------------------------------------- pilworld bench world-model
+
+
+def _signed(x: Any) -> str:
+    return f"{float(x):+.2f}"
+
+
+# The summary table, one row per view (pilworld/bench/output.py aligns it).
+WORLD_MODEL_COLUMNS = (
+    Column("view", 18, "view", align="<"),
+    Column("psnr", 8, "psnr", num),
+    Column("frozen", 8, "frozen", num),
+    Column("gain", 8, "gain", _signed),
+    Column("pooled gain", 13, "pooled", _signed),
+    Column("no-hist", 9, "no_history", num),  # only when the no-history ablation ran
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--checkpoint",
+        type=Path,
+        default=None,
+        help="world-model checkpoint (default: v1, pilworld.world_model.V1_CHECKPOINT)",
+    )
+    parser.add_argument("--adapter", default=None, help="LoRA adapter of the checkpoint to apply (a task name)")
+    add_rig(parser)
+    parser.add_argument("--tasks", default="all", help="comma-separated tasks of the held-out runs (default all)")
+    parser.add_argument("--episodes", type=int, default=2, help="held-out runs per task and checkpoint (default 2)")
+    parser.add_argument(
+        "--seed0", type=int, default=None, help="first held-out seed (default 1000000; training used 0-19)"
+    )
+    parser.add_argument(
+        "--clips", type=int, default=120, help="max held-out clips scored, a seeded subset (default 120)"
+    )
+    parser.add_argument("--batch", type=int, default=1, help="clips per predict_batch call for the scores (default 1)")
+    parser.add_argument("--steps", type=int, default=None, help="sampling steps (default: the model's)")
+    parser.add_argument("--repeats", type=int, default=20, help="timed single-chunk calls for the latency (default 20)")
+    parser.add_argument("--no-ablation", action="store_true", help="skip the no-history ablation figures")
+    parser.add_argument("--lpips-weights", type=Path, default=None, help="folder holding the LPIPS AlexNet weights")
+    parser.add_argument(
+        "--workers", type=int, default=None, help="processes collecting the held-out runs (default: CPUs)"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The held-out set (collected once, then cached), the model's scores against the frozen baseline, latency."""
+    # Imported here: the checkpoint loader pulls in the model code, which parsing the options does not need.
+    import pilworld.world_model as world_model
+    from pilworld.world_model.loader import load_world_model
+    from simrig.tasks import TASK_NAMES
+
+    # v1 by default: the bench's presets, steps and open-loop figures (docs/world_model.md) are v1's.
+    checkpoint = args.checkpoint or getattr(world_model, "V1_CHECKPOINT", None)
+    if checkpoint is None:
+        raise ValueError("--checkpoint: required (pilworld.world_model defines no V1_CHECKPOINT)")
+    if not Path(checkpoint).exists():
+        raise FileNotFoundError(f"--checkpoint: {checkpoint} not found")
+    tasks = parse_names(args.tasks, list(TASK_NAMES), "--tasks")
+    model = load_world_model(Path(checkpoint), adapter=args.adapter)
+    no_history = None
+    if not args.no_ablation and hasattr(model, "without_history"):
+        no_history = model.without_history()
+    root = heldout_dataset(
+        args.rig,
+        tasks=tasks,
+        episodes=args.episodes,
+        seed0=HELDOUT_SEED0 if args.seed0 is None else args.seed0,
+        workers=args.workers,
+        progress=not args.json,
+    )
+    result = run_world_model_bench(
+        model,
+        heldout=root,
+        no_history=no_history,
+        steps=args.steps,
+        clips=args.clips,
+        batch=args.batch,
+        repeats=args.repeats,
+        seed=args.seed,
+        rig=args.rig,
+        progress=not args.json,
+        lpips_weights=args.lpips_weights,
+    )
+    result = {"checkpoint": str(checkpoint), "adapter": args.adapter, **result}
+    return emit(args, result, summary_lines(result))
+
+
+def summary_lines(result: dict[str, Any]) -> list[str]:
+    """PSNR and SSIM against the frozen baseline, the per-view table, LPIPS and latency."""
+    w, h = result["image_size"]
+    nh = result["no_history"]
+    rows = [
+        {
+            "view": view,
+            "psnr": fig["psnr"],
+            "frozen": result["per_view_frozen"][view]["psnr"],
+            "gain": result["gain_over_frozen_db"][view],
+            "pooled": result["gain_over_frozen_pooled_db"][view],
+            "no_history": nh["per_view"][view]["psnr"] if nh else None,
+        }
+        for view, fig in result["per_view"].items()
+    ]
+    lines = [
+        f"world-model ({result['model']}, {w}x{h}, K={result['K']}): {result['clips']} held-out clips, "
+        f"PSNR {result['psnr']:.2f} dB (frozen {result['psnr_frozen']:.2f}), "
+        f"SSIM {result['ssim']:.3f} (frozen {result['ssim_frozen']:.3f})",
+        *table(WORLD_MODEL_COLUMNS if nh else WORLD_MODEL_COLUMNS[:-1], rows),
+    ]
+    exact = {v: f["exact"] for v, f in result["per_view_frozen"].items() if f["exact"] > 0}
+    if exact:  # these frames score the 100 dB cap and lift psnr_frozen
+        shares = ", ".join(f"{v} {x:.0%}" for v, x in exact.items())
+        lines.append(f"  frozen baseline bit-exact (static view, PSNR capped at 100 dB): {shares}")
+    if "lpips" in result:
+        lines.append(f"  LPIPS {result['lpips']:.4f} (frozen {result['lpips_frozen']:.4f})")
+    else:
+        lines.append(f"  LPIPS not computed: {result['lpips_absent_reason']}")
+    lines.append(
+        f"  latency {result['chunk_latency_ms']:.1f} ms per chunk (p90 {result['chunk_latency_ms_p90']:.1f}, "
+        f"steps {result['steps'] if result['steps'] is not None else 'default'}, {result['torch_threads']} threads), "
+        f"realtime factor {result['realtime_factor']:.2f}"
+    )
+    return lines

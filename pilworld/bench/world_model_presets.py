@@ -7,6 +7,7 @@ makes. Accuracy needs trained weights: see ``pilworld bench world-model``.
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -16,6 +17,8 @@ import torch
 from tqdm import tqdm
 
 from pilworld.bench.common import machine_info
+from pilworld.bench.flags import add_json
+from pilworld.bench.output import emit
 from pilworld.world_model.base import PredictRequest
 from pilworld.world_model.config import PRESETS, preset
 from pilworld.world_model.model import PilWorldModel
@@ -78,3 +81,24 @@ def run_presets_bench(
         }
     out.update({"torch_threads": torch.get_num_threads(), "torch": torch.__version__, "machine": machine_info()})
     return out
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--presets", default="", help="comma-separated presets (default: all)")
+    parser.add_argument("--repeats", type=int, default=10, help="timed calls per preset; the median is reported")
+    parser.add_argument("--steps", type=int, default=None, help="Euler steps (default: each preset's own)")
+    add_json(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """One line per preset: size, parameters, steps, chunk latency and realtime factor."""
+    names = [n for n in args.presets.split(",") if n] or None
+    result = run_presets_bench(names, repeats=args.repeats, steps=args.steps, progress=not args.json)
+    lines = []
+    for name, r in result["presets"].items():
+        w, h = r["image_size"]
+        lines.append(
+            f"{name:>6}: {r['params'] / 1e6:6.2f} M params ({r['float32_mb']} MB float32), {w}x{h}, "
+            f"{r['steps']} steps: {r['chunk_latency_ms']:.1f} ms per chunk, realtime x{r['realtime_factor']}"
+        )
+    return emit(args, result, lines)

@@ -64,7 +64,7 @@ def _print_export(run_dir: Path, report: bool = True) -> None:
 
 def _serve(args: argparse.Namespace) -> int:
     from pilworld.annotate.server import AnnotationServer
-    from pilworld.cli.checks import JUDGES, check_count
+    from pilworld.options.bounds import JUDGES, check_count
 
     check_count(args.judges, "--judges", JUDGES)
     server = AnnotationServer(

@@ -15,6 +15,7 @@ from pilworld.control_video import ControlVideo, ControlVideoStyle
 from pilworld.control_video.robot_render import BACKENDS
 from pilworld.control_video.styles import STYLES, Style
 from pilworld.io.video import write_frames
+from pilworld.options.parse import parse_size
 from pilworld.types import STATE_DIM, ChunkSpec
 
 
@@ -70,16 +71,6 @@ def register(sub: Any) -> None:
     p.add_argument("--fps", type=float, help="video frame rate (default: control rate / stride, i.e. real time)")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
     p.set_defaults(handler=run)
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 128x128, got {text!r}") from None
-    if not (0 < w <= 8192 and 0 < h <= 8192):
-        raise ValueError(f"--size: width and height must be in 1..8192, got {text!r}")
-    return w, h
 
 
 def run(args: argparse.Namespace) -> int:

@@ -71,8 +71,8 @@ def register(sub: Any) -> None:
 
 
 def _imagine(args: argparse.Namespace) -> int:
-    from pilworld.cli.checks import ROUNDS, SAMPLING_STEPS, STARTS, WORKERS, check_count
     from pilworld.imagine.runner import ImagineConfig, imagine_run
+    from pilworld.options.bounds import ROUNDS, SAMPLING_STEPS, STARTS, WORKERS, check_count
     from pilworld.types import ChunkSpec
 
     check_count(args.rounds, "--rounds", ROUNDS)

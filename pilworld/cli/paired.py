@@ -10,8 +10,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.checks import ROUNDS, SAMPLING_STEPS, SEED, STARTS, SUBTASKS, bounded, check_count
 from pilworld.collection.tasks import APPEARANCES
+from pilworld.options.bounds import ROUNDS, SAMPLING_STEPS, SEED, STARTS, SUBTASKS, bounded, check_count
 from simrig.files import SIM_RIG
 
 

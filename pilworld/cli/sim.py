@@ -12,9 +12,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import _names
-from pilworld.cli.checks import EPISODES, SCALE, SEED, SUBTASK_INDEX, WORKERS, bounded, check_count
 from pilworld.collection.tasks import APPEARANCES
+from pilworld.options.bounds import EPISODES, SCALE, SEED, SUBTASK_INDEX, WORKERS, bounded, check_count
+from pilworld.options.parse import parse_names
 from simrig.files import SIM_RIG
 
 
@@ -64,7 +64,7 @@ def _collect(args: argparse.Namespace) -> int:
     tasks = resolve_tasks(args.task, what="--task")
     require_simulated(tasks, what="--task")
     instruction = check_instruction(args.instruction, "--instruction")
-    ckpts = _names(args.checkpoint, [c.name for c in CHECKPOINTS], "--checkpoint")
+    ckpts = parse_names(args.checkpoint, [c.name for c in CHECKPOINTS], "--checkpoint")
     summary = collect(
         args.out,
         rig_path=str(args.rig),

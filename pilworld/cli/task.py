@@ -18,8 +18,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.bench import _names
 from pilworld.collection.tasks import APPEARANCES
+from pilworld.options.parse import parse_names
 from simrig.files import SIM_RIG
 
 SPREAD_WORST = 0.3  # the worst checkpoint succeeds at most this often …
@@ -144,9 +144,9 @@ def _simulated_task(name: str) -> Any:
 def _show(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from pilworld.cli.checks import SEED, check_count
     from pilworld.io.run_folder import check_out_file
     from pilworld.io.video import write_png
+    from pilworld.options.bounds import SEED, check_count
     from simrig.robot import SimRobot
 
     check_png_out(args.out)
@@ -185,15 +185,15 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _try(args: argparse.Namespace) -> int:
-    from pilworld.cli.checks import SEED, TRY_SUBTASKS, WORKERS, check_count
     from pilworld.collection.evaluate import success_rates
+    from pilworld.options.bounds import SEED, TRY_SUBTASKS, WORKERS, check_count
     from pilworld.policies.scripted import CHECKPOINTS
     from pilworld.types import ChunkSpec
 
     check_count(args.subtasks, "--subtasks", TRY_SUBTASKS)
     check_count(args.workers, "--workers", WORKERS)
     check_count(args.seed, "--seed", SEED)
-    ckpts = _names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
+    ckpts = parse_names(args.checkpoints, [c.name for c in CHECKPOINTS], "--checkpoints")
     task = _simulated_task(args.file)
     t0 = time.monotonic()
     rates = success_rates(

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from pilworld.cli.control_video import parse_size
+from pilworld.options.parse import parse_size
 from simrig.files import SIM_RIG, SIM_RIG_IN_CHECKOUT
 
 

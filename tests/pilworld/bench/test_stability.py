@@ -30,20 +30,20 @@ from pilworld.bench.stability import (
     SHUFFLE_ROUNDS,
     WRIST_ERRORS,
     RigError,
-    _fast,
-    _hold,
-    _jitter,
-    _mse,
-    _offset,
-    _psnr,
-    _reverse,
-    _summarize_probes,
     horizon_sweep,
     probe,
     resolve_models,
     rig_errors,
     transplant,
 )
+from pilworld.bench.stability.metrics import frame_mse as _mse
+from pilworld.bench.stability.metrics import frame_psnr as _psnr
+from pilworld.bench.stability.probe_chunks import fast_chunk as _fast
+from pilworld.bench.stability.probe_chunks import hold_chunk as _hold
+from pilworld.bench.stability.probe_chunks import jitter_chunk as _jitter
+from pilworld.bench.stability.probe_chunks import offset_chunk as _offset
+from pilworld.bench.stability.probe_chunks import reverse_chunk as _reverse
+from pilworld.bench.stability.summary import summarize_probes as _summarize_probes
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.control_video.probes import mismatched_robot, perturbed_cameras, perturbed_rig, shifted_principal_point

@@ -7,8 +7,9 @@ import json
 
 import pytest
 
-from pilworld.cli.bench import PAIRED_COLUMNS, PPI_COLUMNS
-from pilworld.cli.bench_print import Column, emit, num, pct, table
+from pilworld.bench.output import Column, emit, num, pct, table
+from pilworld.bench.paired import PAIRED_COLUMNS
+from pilworld.bench.ppi import PPI_COLUMNS
 
 
 def test_table_aligns_every_row_under_its_header() -> None:

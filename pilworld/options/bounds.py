@@ -7,6 +7,7 @@ database for hours. The bounds are far above any real use; ``--help`` states eac
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 
 
@@ -42,6 +43,14 @@ def check_count(value: int | None, flag: str, bound: Bound) -> None:
     if not bound.lo <= value <= bound.hi:
         shown = str(value) if len(str(value)) <= 24 else f"{str(value)[:12]}…({len(str(value))} digits)"
         raise ValueError(f"{flag}: expected an integer in {bound.lo}..{bound.hi:,} ({bound.why}), got {shown}")
+
+
+def at_least_one(args: argparse.Namespace, *dests: str) -> None:
+    """Refuse a count below 1 among ``args``' ``dests`` (None: not given, fine), in order, naming the flag."""
+    for dest in dests:
+        value = getattr(args, dest)
+        if value is not None and value < 1:
+            raise ValueError(f"--{dest.replace('_', '-')}: expected at least 1, got {value}")
 
 
 def bounded(help_text: str, bound: Bound) -> str:

@@ -1,0 +1,120 @@
+"""Rung 3, teacher-forced vs free: one-chunk quality against the errors that compound from round to round."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import numpy as np
+
+from pilworld.bench.wm_ladder.lab import Lab
+from pilworld.bench.wm_ladder.model import SeedShifted
+from pilworld.bench.wm_ladder.settings import HEAD, Frames
+from pilworld.bench.wm_ladder.stats import frame_mse, psnr
+from pilworld.paired.runner import PairedSubtask
+from pilworld.rollout import Rollout
+from pilworld.types import ChunkSpec, Observation, Segment, Start
+from pilworld.world_model.base import WorldModel
+
+
+def _real_sequence(rollout: Rollout) -> list[Observation]:
+    """The real history frames, then the start, then every recorded frame."""
+    return [*rollout.start.history, *rollout.observations]
+
+
+def _imagined_env(lab_gamma: Any, model: WorldModel, spec: ChunkSpec, rate_hz: float, seed: int) -> Any:
+    from pilworld.envs import ImaginedEnv
+
+    # No safety filter: the chunks replayed are the real branch's executed commands, already filtered.
+    return ImaginedEnv(model, lab_gamma, spec, control_rate_hz=rate_hz, seed=seed, safety=None)
+
+
+def teacher_forced_predictions(
+    model: WorldModel, gamma: Any, spec: ChunkSpec, rollout: Rollout, seed: int, rate_hz: float
+) -> Iterator[tuple[int, dict[str, Frames], dict[str, Frames]]]:
+    """Per round r: (r, teacher-forced prediction, free prediction), each {view: uint8[K, H, W, 3]}.
+
+    Teacher-forced round r: a fresh imagined branch reset at the real observation that starts round r with
+    the real frames before it as history, stepping the real executed chunk of round r, with round r's noise
+    seed. Free: one imagined branch from the real start stepping the real executed chunks in turn (its own
+    frames fed back). Round 0 is the same call in both.
+    """
+    seq = _real_sequence(rollout)
+    hist = len(rollout.start.history)
+    free = _imagined_env(gamma, model, spec, rate_hz, seed)
+    free.reset(rollout.start)
+    at = hist
+    for r, segment in enumerate(rollout.segments):
+        executed = np.asarray(segment.actions, dtype=np.float32)
+        start_r = Start(
+            subtask=rollout.start.subtask, observation=seq[at], history=tuple(seq[max(0, at - spec.history) : at])
+        )
+        tf = _imagined_env(gamma, SeedShifted(model, r), spec, rate_hz, seed)
+        tf.reset(start_r)
+        tf_seg: Segment = tf.step(executed)
+        free_seg: Segment = free.step(executed)
+        views = list(seq[0].images)
+        yield (
+            r,
+            {v: np.stack([np.asarray(o.images[v]) for o in tf_seg.observations]) for v in views},
+            {v: np.stack([np.asarray(o.images[v]) for o in free_seg.observations]) for v in views},
+        )
+        at += len(segment.observations)
+
+
+def teacher_forced_record(lab: Lab, pair: PairedSubtask, index: int) -> dict[str, Any]:
+    rollout, _ = lab.real(pair)
+    model, _, _ = lab.model(pair.subtask.task)
+    return teacher_forced_errors(model, lab.gamma, lab.spec, rollout, pair.seed, lab.rig_cfg.control_rate_hz)
+
+
+def teacher_forced_errors(
+    model: WorldModel, gamma: Any, spec: ChunkSpec, rollout: Rollout, seed: int, rate_hz: float
+) -> dict[str, Any]:
+    """Per round and view, the MSE (levels², over the round's K frames) of teacher-forced, free and frozen."""
+    seq = rollout.observations
+    views = list(seq[0].views)
+    out: dict[str, list[dict[str, float]]] = {"teacher_forced": [], "free": [], "frozen": [], "frozen_start": []}
+    at = 0
+    for r, tf, free in teacher_forced_predictions(model, gamma, spec, rollout, seed, rate_hz):
+        n = len(rollout.segments[r].observations)
+        real = {v: np.stack([np.asarray(o.images[v]) for o in seq[at + 1 : at + 1 + n]]) for v in views}
+        held = {v: np.repeat(np.asarray(seq[at].images[v])[None], n, axis=0) for v in views}
+        first = {v: np.repeat(np.asarray(seq[0].images[v])[None], n, axis=0) for v in views}
+        out["teacher_forced"].append({v: frame_mse(tf[v], real[v]) for v in views})
+        out["free"].append({v: frame_mse(free[v], real[v]) for v in views})
+        out["frozen"].append({v: frame_mse(held[v], real[v]) for v in views})
+        out["frozen_start"].append({v: frame_mse(first[v], real[v]) for v in views})
+        at += n
+    return out
+
+
+def teacher_forced_summary(
+    records: Sequence[tuple[PairedSubtask, dict[str, Any]]], views: Sequence[str]
+) -> dict[str, Any]:
+    kinds = ("teacher_forced", "free", "frozen", "frozen_start")
+    rounds = max((len(r["free"]) for _, r in records), default=0)
+    rows = []
+    per_view: dict[str, dict[str, list[float | None]]] = {v: {k: [] for k in kinds} for v in [*views, "all"]}
+    for i in range(rounds):
+        have = [r for _, r in records if len(r["free"]) > i]
+        row: dict[str, Any] = {"round": i + 1, "n": len(have)}
+        for k in kinds:
+            mses = {v: float(np.mean([r[k][i][v] for r in have])) for v in views}
+            psnrs = {v: psnr(m) for v, m in mses.items()}
+            psnrs["all"] = psnr(float(np.mean(list(mses.values()))))
+            row[k] = psnrs
+            for v, p in psnrs.items():
+                per_view[v][k].append(p)
+        row["compounding_db"] = round(row["teacher_forced"]["all"] - row["free"]["all"], 3)
+        row["tf_gain_over_frozen_head_db"] = (
+            round(row["teacher_forced"][HEAD] - row["frozen"][HEAD], 3) if HEAD in views else None
+        )
+        rows.append(row)
+    return {
+        "n": len(records),
+        "metric": "pooled PSNR (dB) over the round's K frames of every pair",
+        "rounds": rows,
+        "head": per_view.get(HEAD, {}),
+        "all_views": per_view["all"],
+    }
