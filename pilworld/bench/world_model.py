@@ -52,7 +52,14 @@ from pilworld.data.clips import ClipSpec
 from pilworld.data.reader import EpisodeStore
 from pilworld.io.atomic import write_json
 from pilworld.options.parse import parse_names
-from pilworld.world_model.base import FrozenWorldModel, PredictRequest, WorldModel, WorldModelBatch, WorldModelInfo
+from pilworld.world_model.base import (
+    FrozenWorldModel,
+    HistoryAblation,
+    PredictRequest,
+    WorldModel,
+    WorldModelBatch,
+    WorldModelInfo,
+)
 from pilworld.world_model.batching import collate_clips, control_renderer, resize_images
 from pilworld.world_model.metrics import SingleStepScores, load_lpips
 from simrig.files import SIM_RIG
@@ -467,7 +474,7 @@ def run(args: argparse.Namespace) -> int:
     tasks = parse_names(args.tasks, list(TASK_NAMES), "--tasks")
     model = load_world_model(Path(checkpoint), adapter=args.adapter)
     no_history = None
-    if not args.no_ablation and hasattr(model, "without_history"):
+    if not args.no_ablation and isinstance(model, HistoryAblation):
         no_history = model.without_history()
     root = heldout_dataset(
         args.rig,
