@@ -19,7 +19,7 @@ Three parts, each timed:
 * **Sweep** (:func:`calib.sweep.run_sweep`): translation and rotation error of ``T_cam_base`` per method
   against pixel noise, FK noise, number of poses and rotation span, with a chart (:func:`plot_sweep`).
 * **Wrist cameras** (eye-in-hand, issue #20): per wrist camera of the simulated rig, ``wrist_seeds`` full
-  calibrations (:func:`pilworld.calibration.wrist_sim.run_sim_wrist`: board flat on the table, 20 poses,
+  calibrations (:func:`pilworld.calibration.sim_handeye.run_sim_wrist`: board flat on the table, 20 poses,
   1024 px) and the *largest* error of ``T_tcp_cam`` over the seeds (``wrist_trans_err_mm_max``,
   ``wrist_rot_err_deg_max``, per camera under ``wrist``); with the synthetic source (``--quick``), the
   same from :func:`calib.sweep.make_in_hand_trial` scenes (0.3 px, FK 0.02°). ``wrist_degenerate`` holds
@@ -270,7 +270,7 @@ def wrist_figures(
 ) -> dict[str, Any]:
     """Eye-in-hand accuracy per wrist camera over ``seeds`` seeds: the largest errors against the truth.
 
-    ``source`` "sim" renders the simulated rig (:func:`pilworld.calibration.wrist_sim.run_sim_wrist`),
+    ``source`` "sim" renders the simulated rig (:func:`pilworld.calibration.sim_handeye.run_sim_wrist`),
     "synthetic" uses :func:`calib.sweep.make_in_hand_trial` scenes (0.3 px, FK 0.02°; other draws per camera).
     """
     if source not in ("sim", "synthetic"):

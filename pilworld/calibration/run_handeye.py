@@ -220,10 +220,9 @@ def _wrist(request: HandEyeRequest, log: Log) -> dict[str, Any]:
     board = _board(request)
     recording, source = _views(request, arm, board, log)
     board = board or recording.board
-    # "--name {name}" is printed literally (not an f-string), as this message always has been.
     advice = (
         f"calibrate {name}'s intrinsics at the resolution of the images with `pilworld calibrate intrinsics "
-        "--name {name}` first"
+        f"--name {name}` first"
     )
     intrinsics = _intrinsics(request, recording, advice)
     with _refusing_degenerate_motion():
