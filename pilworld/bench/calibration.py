@@ -18,7 +18,7 @@ Three parts, each timed:
   (``handeye_synthetic``): the sim's renders carry only the detector's error, not 0.3 px of noise.
 * **Sweep** (:func:`calib.sweep.run_sweep`): translation and rotation error of ``T_cam_base`` per method
   against pixel noise, FK noise, number of poses and rotation span, with a chart (:func:`plot_sweep`).
-* **Wrist cameras** (eye-in-hand, issue #20): per wrist camera of the simulated rig, ``wrist_seeds`` full
+* **Wrist cameras** (eye-in-hand; docs/calibration.md): per wrist camera of the simulated rig, ``wrist_seeds`` full
   calibrations (:func:`pilworld.calibration.sim_handeye.run_sim_wrist`: board flat on the table, 20 poses,
   1024 px) and the *largest* error of ``T_tcp_cam`` over the seeds (``wrist_trans_err_mm_max``,
   ``wrist_rot_err_deg_max``, per camera under ``wrist``); with the synthetic source (``--quick``), the

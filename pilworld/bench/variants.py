@@ -70,9 +70,9 @@ def standard_variants() -> list[ModelVariant]:
 
     The Ctrl-World-style baseline had 3,500 Ψ_θ steps; ``pilworld_3500`` is our recipe at the same budget
     (v1's first stage), so the two compare at equal training. The ablations change one thing of v1 (the
-    paper-style latent model, shipped until issue #21): its history memory hidden at inference, or its
+    paper-style latent model, shipped until 2026-12-01): its history memory hidden at inference, or its
     stage-2 task adapters fine-tuned on successes only (the paper's stage 2 uses successes and failures).
-    The shipped model is v2 (``pilworld``); its equal-budget ablations are issue #24's.
+    The shipped model is v2 (``pilworld``); its equal-budget ablations are docs/RESULTS.md §1's.
     """
     return [
         ModelVariant(
@@ -87,7 +87,7 @@ def standard_variants() -> list[ModelVariant]:
             "PiL-World v1 (latent model, 9k steps, task adapters)",
             str(V1_CHECKPOINT),
             role="reference",
-            note="the shipped model until issue #21 (its rows in results before 2026-12-02 are named 'pilworld')",
+            note="the shipped model until v2 (its rows in results before 2026-12-02 are named 'pilworld')",
         ),
         ModelVariant(
             "ctrl_world",
@@ -121,7 +121,7 @@ def standard_variants() -> list[ModelVariant]:
     ]
 
 
-# Issue #24: v2's recipe at equal budget (same data, cache, steps, network), one switch each
+# docs/RESULTS.md §1: v2's recipe at equal budget (same data, cache, steps, network), one switch each
 # (pilworld/world_model/composite/switches.py; scripts/train-bench-variants makes the weights).
 V2_VARIANTS: tuple[tuple[str, str, str], ...] = (
     ("v2_paper_gamma", "paper-faithful: the paper's marker Γ (head view), no memory, no hand region", "baseline"),
@@ -136,7 +136,7 @@ V2_VARIANTS: tuple[tuple[str, str, str], ...] = (
 
 
 def v2_variants() -> list[ModelVariant]:
-    """Issue #24's rows: v2's recipe with one switch each, weights in ``weights/bench/<name>``."""
+    """The equal-budget rows (docs/RESULTS.md §1): v2's recipe, one switch each, weights in ``weights/bench/<name>``."""
     return [
         ModelVariant(
             name,
