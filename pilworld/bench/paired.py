@@ -26,10 +26,11 @@ from typing import Any
 
 from pilworld.bench.claims import Verdicts, agreement, paper_claims, steps
 from pilworld.bench.common import machine_info
-from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.flags import add_json, add_rig, run_folder
 from pilworld.bench.output import Column, emit, num, pct, table
 from pilworld.bench.variants import ModelVariant, PairedProtocol, evaluate_variants, standard_variants, v2_variants
 from pilworld.options.bounds import at_least_one
+from pilworld.options.parse import parse_list
 
 QUICK_CHECKPOINTS = ("scripted_step_01k", "scripted_step_30k")
 QUICK_SUBTASKS = 3
@@ -287,20 +288,19 @@ def run(args: argparse.Namespace) -> int:
     from pilworld.bench.charts import paired_table_chart
 
     at_least_one(args, "subtasks")
-    out = args.out or Path("bench_runs") / ("paired-quick" if args.quick else "paired-full")
-    names = [n.strip() for n in args.variants.split(",") if n.strip()] or None
+    out = run_folder(args, "paired")
     r = run_paired_bench(
         out=out,
         rig=args.rig,
         quick=args.quick,
-        variants=names,
+        variants=parse_list(args.variants) or None,
         subtasks=args.subtasks,
         seed=args.seed,
         workers=args.workers,
         progress=not args.json,
         real_from=args.real_from,
     )
-    r["chart"] = str(paired_table_chart(r["variants"], r["targets"], args.chart or Path(out) / "paired.png"))
+    r["chart"] = str(paired_table_chart(r["variants"], r["targets"], args.chart or out / "paired.png"))
     return emit(args, r, summary_lines(r))
 
 

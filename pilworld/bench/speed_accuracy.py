@@ -76,7 +76,7 @@ from typing import Any
 import numpy as np
 
 from pilworld.bench.common import machine_info
-from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.flags import add_json, add_rig, run_folder
 from pilworld.bench.output import Column, emit, num, pct, table
 from pilworld.bench.speed_accuracy_front import (
     SHIPPED,
@@ -585,7 +585,7 @@ def run(args: argparse.Namespace) -> int:
     if steps and min(steps) < 1:
         raise ValueError(f"--steps: expected integers >= 1, got {args.steps!r}")
     at_least_one(args, "clips", "repeats", "subtasks")
-    out = args.out or Path("bench_runs") / ("speed-accuracy-quick" if args.quick else "speed-accuracy-full")
+    out = run_folder(args, "speed-accuracy")
     r = run_speed_accuracy(
         rig=args.rig,
         quick=args.quick,

@@ -1,4 +1,4 @@
-"""Option text turned into values: comma-separated names (or ``all``) and ``WIDTHxHEIGHT`` sizes.
+"""Option text turned into values: comma-separated lists and names (or ``all``), ``WIDTHxHEIGHT`` sizes.
 
 A bad value is a one-line ``ValueError`` naming the flag (``pilworld`` exits 2 on it: :mod:`pilworld.cli.main`).
 """
@@ -6,11 +6,16 @@ A bad value is a one-line ``ValueError`` naming the flag (``pilworld`` exits 2 o
 from __future__ import annotations
 
 
+def parse_list(value: str) -> list[str]:
+    """The comma-separated items of ``value``, stripped, empty ones dropped (``""`` gives ``[]``)."""
+    return [v.strip() for v in value.split(",") if v.strip()]
+
+
 def parse_names(value: str, all_names: list[str], what: str) -> list[str]:
     """``value`` as a list of known names: ``all`` gives ``all_names``; an unknown or empty list is refused."""
     if value.strip() == "all":
         return all_names
-    listed = [v.strip() for v in value.split(",") if v.strip()]
+    listed = parse_list(value)
     bad = [n for n in listed if n not in all_names]
     if bad or not listed:
         raise ValueError(f"{what}: unknown {bad or value!r}; choose from {', '.join(all_names)} or 'all'")

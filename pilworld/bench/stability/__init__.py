@@ -63,7 +63,8 @@ camera errors from ``ERROR_SEED``.
 The package follows the probes: seeds and shared names (:mod:`.settings`), frame errors (:mod:`.metrics`),
 the horizon figures (:mod:`.horizon`), the probes' chunks (:mod:`.probe_chunks`), the wrong rigs
 (:mod:`.rig_errors`), the models (:mod:`.models`), the probes (:mod:`.prober`) and their summary
-(:mod:`.summary`), and the whole bench (:mod:`.runner`).
+(:mod:`.summary`), the whole bench (:mod:`.runner`) and its printed summary (:mod:`.report`); this module
+adds ``pilworld bench stability``'s options and run.
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from pilworld.bench.flags import add_json, add_rig
+from pilworld.bench.flags import add_json, add_rig, run_folder
 from pilworld.bench.output import emit
 from pilworld.bench.stability.horizon import horizon_sweep
 from pilworld.bench.stability.models import known_models, resolve_models
@@ -97,6 +98,7 @@ from pilworld.bench.stability.settings import (
     STABILITY_SEED0,
 )
 from pilworld.options.bounds import at_least_one
+from pilworld.options.parse import parse_list
 
 __all__ = [
     "CAL_SHIFTS_PX",
@@ -147,8 +149,7 @@ def run(args: argparse.Namespace) -> int:
     from pilworld.bench.charts import stability_chart
 
     at_least_one(args, "subtasks", "starts")
-    out = args.out or Path("bench_runs") / ("stability-quick" if args.quick else "stability-full")
-    models = [n.strip() for n in args.models.split(",") if n.strip()] or None
+    out = run_folder(args, "stability")
     r = run_stability(
         rig=args.rig,
         quick=args.quick,
@@ -156,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         subtasks=args.subtasks,
         starts=args.starts,
         workers=args.workers,
-        models=models,
+        models=parse_list(args.models) or None,
         progress=not args.json,
     )
     r["chart"] = str(stability_chart(r, args.chart or out / "stability.png"))

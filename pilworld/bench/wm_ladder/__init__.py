@@ -33,7 +33,8 @@ is appended to ``<rung>.jsonl`` (keyed by the settings that decide it), and ever
 docs/world_model.md, "Diagnostic ladder", has the figures. The package follows the ladder: its settings
 (:mod:`.settings`), the model and its autoencoder (:mod:`.model`), the wrapped real branches (:mod:`.envs`),
 the degradations (:mod:`.degrade`), the lab and its caches (:mod:`.lab`, :mod:`.real_store`), the statistics
-(:mod:`.stats`), one module per rung, and the ladder itself (:mod:`.ladder`).
+(:mod:`.stats`), one module per rung, and the ladder itself (:mod:`.ladder`); this module adds
+``pilworld bench wm-ladder``'s options and run.
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ from pilworld.bench.wm_ladder.settings import (
 )
 from pilworld.bench.wm_ladder.teacher_forced import teacher_forced_errors, teacher_forced_predictions
 from pilworld.options.bounds import at_least_one
+from pilworld.options.parse import parse_list
 from pilworld.types import ChunkSpec
 
 __all__ = [
@@ -112,17 +114,14 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     at_least_one(args, "rounds")
 
-    def names(value: str) -> tuple[str, ...]:
-        return tuple(v.strip() for v in value.split(",") if v.strip())
-
     cfg = LadderConfig(
         model=str(args.model) if args.model is not None else "",
         rig=str(args.rig),
         quick=args.quick,
         subtasks=args.subtasks,
-        tasks=TASKS if args.tasks.strip() == "all" else names(args.tasks),
-        checkpoints=names(args.checkpoints) or None,
-        rungs=names(args.rungs) or RUNGS,
+        tasks=TASKS if args.tasks.strip() == "all" else tuple(parse_list(args.tasks)),
+        checkpoints=tuple(parse_list(args.checkpoints)) or None,
+        rungs=tuple(parse_list(args.rungs)) or RUNGS,
         spec=ChunkSpec() if args.rounds is None else ChunkSpec(rounds=args.rounds),
         out=str(args.out or DEFAULT_OUT),
     )
