@@ -28,7 +28,7 @@ from hw_drivers.safety import SafetyFilter
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs.base import EnvError, as_chunk
 from pilworld.types import ActionChunk, ChunkSpec, Observation, Segment, Start
-from pilworld.world_model.base import PredictRequest, StatefulRollout, WorldModel
+from pilworld.world_model.base import PredictRequest, StatefulRollout, StatePrediction, WorldModel
 
 
 class HistoryMemory:
@@ -168,7 +168,7 @@ class ImaginedEnv:
         )
         # A different seed per round, fixed per (env seed, round): reruns reproduce the same rollout.
         seed = self.seed * 1000 + self._round
-        if isinstance(self.model, StatefulRollout):
+        if isinstance(self.model, StatePrediction):
             # A model that predicts the state the robot will report (v2: a gripper resting on what it holds).
             frames, states = self.model.predict_with_state(request, steps=self.steps, seed=seed)
             states = np.asarray(states, dtype=np.float32)

@@ -20,8 +20,8 @@ attribute names:
 * :class:`RigBound` — the model composites the rig's geometry (world model v2): ``bind_rig(rig)`` makes it
   use this rig's robot model and camera calibration;
 * :class:`StatefulRollout` — the model carries state across the chunks of one rollout (v2: its tracked
-  objects): ``begin_rollout`` at the imagined branch's reset, then ``predict_with_state`` per chunk, which
-  also predicts the joint state the robot will report;
+  objects), started by ``begin_rollout`` at the imagined branch's reset;
+* :class:`StatePrediction` — ``predict_with_state`` also predicts the joint state the robot will report (v2);
 * :class:`HistoryAblation` — the model can run with its history memory hidden (``without_history``), the
   paper's no-history ablation.
 """
@@ -249,13 +249,19 @@ class RigBound(Protocol):
 
 @runtime_checkable
 class StatefulRollout(Protocol):
-    """A world model that carries state across one rollout's chunks and predicts the reported joint state."""
+    """A world model that carries state across one rollout's chunks, started at the imagined branch's reset."""
 
     def begin_rollout(
         self, current: dict[str, NDArray[np.uint8]], state: NDArray[np.floating], instruction: str
     ) -> None:
         """Start a rollout from its first frames (view -> uint8 [H, W, 3]) and joint state."""
         ...
+
+
+@runtime_checkable
+class StatePrediction(Protocol):
+    """A world model that also predicts the joint state the robot will report (e.g. a gripper resting on what
+    it holds); without it, the state after a chunk is its last stride-aligned action."""
 
     def predict_with_state(
         self, request: PredictRequest, *, steps: int | None = None, seed: int = 0

@@ -258,8 +258,11 @@ class WanWorldModel:
         ``info`` (views, image size, K, H_h): from the folder's ``config.json`` when :meth:`save_pretrained`
         wrote one, else it must be given (a stock Wan2.1 folder knows nothing of the rig)."""
         folder = Path(folder)
-        if not is_wan_folder(folder):
-            raise FileNotFoundError(f"{folder}: not a Wan2.1 folder; expected {WAN_LAYOUT}")
+        if not folder.is_dir():
+            raise FileNotFoundError(f"Wan2.1 folder {folder} does not exist; expected {WAN_LAYOUT}")
+        for sub in ("transformer", "vae"):
+            if not (folder / sub / "config.json").is_file():
+                raise FileNotFoundError(f"{folder / sub / 'config.json'} not found; expected {WAN_LAYOUT}")
         saved = _saved_settings(folder)
         if info is None:
             if saved is None:

@@ -159,9 +159,9 @@ def test_cli_prints_a_table_then_the_json(
         loaded.append(path)
         return Loaded(_info())
 
-    fake = types.ModuleType("pilworld.world_model.checkpoint")
+    fake = types.ModuleType("pilworld.world_model.loader")
     fake.load_world_model = load_world_model  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "pilworld.world_model.checkpoint", fake)
+    monkeypatch.setitem(sys.modules, "pilworld.world_model.loader", fake)
     monkeypatch.setenv("PILWORLD_CACHE", str(cache))  # the held-out set of the fixture is reused
     ckpt = tmp_path / "model"
     ckpt.mkdir()

@@ -17,6 +17,7 @@ from pilworld.world_model.base import (
     PredictRequest,
     RigBound,
     StatefulRollout,
+    StatePrediction,
     WorldModel,
     WorldModelInfo,
 )
@@ -48,7 +49,7 @@ def test_the_shipped_model_is_v2_and_offers_its_capabilities() -> None:
     model = load_world_model(DEFAULT_CHECKPOINT)
     assert format_of(DEFAULT_CHECKPOINT).name == "pilworld-composite-world-model/1"
     assert isinstance(model, WorldModel)
-    assert isinstance(model, RigBound) and isinstance(model, StatefulRollout)
+    assert isinstance(model, RigBound) and isinstance(model, StatefulRollout) and isinstance(model, StatePrediction)
     assert not isinstance(model, HistoryAblation)
     assert adapter_names(DEFAULT_CHECKPOINT) == []
     with pytest.raises(ValueError, match=r"v2 \(composite\) world model, which has no task adapters"):
@@ -68,7 +69,7 @@ def test_a_v1_folder_loads_through_the_same_loader(tmp_path: Path) -> None:
 def test_the_frozen_baseline_has_no_optional_capability() -> None:
     model = FrozenWorldModel(WAN_INFO)
     assert isinstance(model, WorldModel)
-    assert not any(isinstance(model, c) for c in (RigBound, StatefulRollout, HistoryAblation))
+    assert not any(isinstance(model, c) for c in (RigBound, StatefulRollout, StatePrediction, HistoryAblation))
 
 
 def test_a_wan_folder_loads_by_its_format_and_a_stock_one_with_the_rigs_info(tmp_path: Path) -> None:
