@@ -55,16 +55,18 @@ def _gamma(data: RunData, rig: RigConfig | None = None) -> tuple[ControlVideo | 
     cfg = data.config
     if cfg is None:
         return None, "control video Γ not shown: paired_config.json is missing (the rig is unknown)"
-    rig_value = cfg.get("rig")
-    if rig is None and (not isinstance(rig_value, str) or not rig_value):
-        return None, "control video Γ not shown: paired_config.json names no rig"
-    path = None if rig is not None else _rig_path(str(rig_value), data.root)
-    if rig is None and path is None:
-        return None, f"control video Γ not shown: rig config {rig_value!r} not found"
     try:
+        if rig is None:  # the rig the run's settings name, when the caller has none loaded
+            rig_value = cfg.get("rig")
+            if not isinstance(rig_value, str) or not rig_value:
+                return None, "control video Γ not shown: paired_config.json names no rig"
+            path = _rig_path(rig_value, data.root)
+            if path is None:
+                return None, f"control video Γ not shown: rig config {rig_value!r} not found"
+            rig = RigConfig.load(path)
         spec_json = cfg.get("spec")
         spec = ChunkSpec(**spec_json) if isinstance(spec_json, Mapping) else ChunkSpec()
-        return ControlVideo.from_rig(rig if rig is not None else RigConfig.load(str(path)), spec), ""
+        return ControlVideo.from_rig(rig, spec), ""
     except (ValueError, TypeError, OSError) as err:
         return None, f"control video Γ not shown: {err}"
 
