@@ -8,7 +8,7 @@ v1 fails every rollout).
 
 **Points.** One point per world model and number of sampling steps:
 
-* **v1** (the paper-style latent flow model, :class:`~pilworld.world_model.model.PilWorldModel`): the trained
+* **v1** (the paper-style latent flow model, :class:`~pilworld.world_model.latent.model.PilWorldModel`): the trained
   ``tiny`` 32×32 and 64×64 (``weights/bench/tiny_32|tiny_64``) and ``small`` 128×128
   (:data:`~pilworld.world_model.V1_CHECKPOINT`), each at 1, 2, 4, 8 and 16 Euler steps, run at the rig's
   128×128 through :class:`~pilworld.world_model.resized.ResizedWorldModel` (resizing in the time and in the
@@ -209,9 +209,9 @@ def _load(m: TrainedModel, rig: Any) -> Any:
     to its geometry (never resized: v2 composites at the rig's size)."""
     import torch
 
-    from pilworld.world_model.config import preset
+    from pilworld.world_model.latent.config import preset
+    from pilworld.world_model.latent.model import PilWorldModel
     from pilworld.world_model.loader import load_world_model
-    from pilworld.world_model.model import PilWorldModel
     from pilworld.world_model.resized import ResizedWorldModel
 
     size = (rig.image_size.width, rig.image_size.height)

@@ -20,8 +20,8 @@ from pilworld.bench.common import machine_info
 from pilworld.bench.flags import add_json
 from pilworld.bench.output import emit
 from pilworld.world_model.base import PredictRequest
-from pilworld.world_model.config import PRESETS, preset
-from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.latent.config import PRESETS, preset
+from pilworld.world_model.latent.model import PilWorldModel
 
 CONTROL_STRIDE = 3  # Δ
 CONTROL_RATE_HZ = 30.0  # the simulated rig

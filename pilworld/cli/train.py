@@ -189,7 +189,7 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from pilworld.world_model.checkpoint import adapter_names, export_model
+    from pilworld.world_model.latent.checkpoint import adapter_names, export_model
 
     dest = export_model(
         args.source, args.out, adapters=list(args.adapters), dtype=torch_dtype(args.dtype), steps=args.steps

@@ -1,5 +1,8 @@
-"""The chunk-wise world model (paper §3.2): one interface (:mod:`.base`), the native PiL-World model
-(:mod:`.model`, presets in :mod:`.config`), training (:mod:`.training`) and the Wan2.1 backend (:mod:`.wan`).
+"""The chunk-wise world model (paper §3.2): one interface (:mod:`.base`) and one loader keyed by a folder's format
+(:mod:`.loader`, folders in :mod:`.folder`) over three sibling formats: the composite, v2 (:mod:`.composite`), the
+paper-style latent video model, v1 (:mod:`.latent`), and the Wan2.1 backend (:mod:`.wan`). Training loops and
+their checkpoints are in :mod:`.training`; clip batching and image resizing shared by all in :mod:`.batching`
+and :mod:`.resized`; single-step image metrics in :mod:`.metrics`.
 
 ``DEFAULT_CHECKPOINT`` is the shipped model, world model v2 (:mod:`.composite`: geometry, tracked objects and a
 0.09 M-parameter compositing network) trained on the simulated rig; ``V1_CHECKPOINT`` the paper-style latent

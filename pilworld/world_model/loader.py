@@ -31,13 +31,13 @@ class Format:
 
 
 def _latent(folder: Path, adapter: str | None, device: str | torch.device, info: WorldModelInfo | None) -> WorldModel:
-    from pilworld.world_model.checkpoint import load_latent
+    from pilworld.world_model.latent.checkpoint import load_latent
 
     return load_latent(folder, adapter=adapter, device=device)
 
 
 def _latent_adapters(folder: Path) -> list[str]:
-    from pilworld.world_model.checkpoint import adapter_names
+    from pilworld.world_model.latent.checkpoint import adapter_names
 
     return adapter_names(folder)
 
@@ -53,7 +53,7 @@ def _composite(
 
 
 def _wan(folder: Path, adapter: str | None, device: str | torch.device, info: WorldModelInfo | None) -> WorldModel:
-    from pilworld.world_model.wan import WanWorldModel
+    from pilworld.world_model.wan.backend import WanWorldModel
 
     if adapter is not None:
         raise ValueError(f"adapter: {folder} is a Wan2.1 world model, which has no task adapters")
@@ -75,7 +75,7 @@ WAN_STOCK = Format("wan2.1-diffusers", "a stock Wan2.1 folder (diffusers)", _wan
 
 def format_of(path: str | Path) -> Format:
     """The :class:`Format` of a world-model folder; one line naming the folder and what was expected."""
-    from pilworld.world_model.wan import is_wan_folder
+    from pilworld.world_model.wan.backend import is_wan_folder
 
     folder = Path(path)
     if not folder.is_dir():

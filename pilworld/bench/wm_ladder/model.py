@@ -66,8 +66,8 @@ class FrameAutoencoder:
     def __call__(self, frames: Frames) -> Frames:
         """uint8 [N, H, W, 3] → the autoencoded uint8 [N, H, W, 3]."""
         from pilworld.world_model.batching import resize_images
+        from pilworld.world_model.latent.vae import to_uint8
         from pilworld.world_model.resized import upsample_images
-        from pilworld.world_model.vae import to_uint8
 
         arr = np.asarray(frames, dtype=np.uint8)
         h, w = arr.shape[-3], arr.shape[-2]

@@ -13,7 +13,7 @@
    batch of step s is a pure function of (seed, s)). Validation on held-out episodes (every 20th)
    against the static-prior baseline, one JSON line per event in ``RUN/log.jsonl``.
 4. ``RUN/model/``: ``config.json`` + ``model.safetensors`` (the EMA weights), loadable by
-   :func:`pilworld.world_model.checkpoint.load_world_model`.
+   :func:`pilworld.world_model.latent.checkpoint.load_world_model`.
 """
 
 from __future__ import annotations

@@ -27,8 +27,8 @@ from pilworld.data.clips import ClipSpec, mix_weights
 from pilworld.io.atomic import atomic_write
 from pilworld.world_model.base import WorldModelBatch
 from pilworld.world_model.batching import collate_clips, control_renderer, resize_images
-from pilworld.world_model.model import PilWorldModel
-from pilworld.world_model.vae import to_unit
+from pilworld.world_model.latent.model import PilWorldModel
+from pilworld.world_model.latent.vae import to_unit
 
 
 def step_generator(seed: int, step: int, rank: int = 0, stream: int = 0) -> torch.Generator:

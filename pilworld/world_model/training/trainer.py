@@ -30,13 +30,13 @@ from tqdm import tqdm
 
 from pilworld.config.rig import RigConfig
 from pilworld.io.atomic import write_json
-from pilworld.world_model.checkpoint import load_model, save_model
-from pilworld.world_model.config import ConditioningConfig, preset
-from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.latent.checkpoint import load_model, save_model
+from pilworld.world_model.latent.config import ConditioningConfig, preset
+from pilworld.world_model.latent.model import PilWorldModel
+from pilworld.world_model.latent.vae import to_unit
 from pilworld.world_model.training.data import DataSelection, TrainData, step_generator
 from pilworld.world_model.training.distributed import Dist, init_distributed, shutdown
 from pilworld.world_model.training.state import EMA, latest_checkpoint, load_checkpoint, save_checkpoint
-from pilworld.world_model.vae import to_unit
 
 # Debug hook for the DDP tests (see Trainer._dump_rank_weights).
 DUMP_RANK_WEIGHTS_ENV = "PILWORLD_DUMP_RANK_WEIGHTS"
@@ -326,7 +326,7 @@ class Trainer:
         return obj
 
     def _train_denoiser(self, model: PilWorldModel, data: TrainData, *, lora: bool) -> Path:
-        from pilworld.world_model.lora import add_lora, save_adapter
+        from pilworld.world_model.latent.lora import add_lora, save_adapter
 
         c, d = self.cfg, self.dist
         for p in model.parameters():

@@ -53,7 +53,7 @@ from pilworld.config.rig import ImageSize, RigConfig
 from pilworld.world_model import DEFAULT_CHECKPOINT, V1_CHECKPOINT
 from pilworld.world_model.composite.checkpoint import save_composite
 from pilworld.world_model.composite.model import CompositeConfig, CompositeWorldModel
-from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.latent.model import PilWorldModel
 from pilworld.world_model.resized import ResizedWorldModel
 from simrig.tasks import TASK_NAMES
 

@@ -18,9 +18,9 @@ from pilworld.bench import wm_ladder as wl
 from pilworld.cli.main import main
 from pilworld.config.rig import RigConfig
 from pilworld.types import LEFT_GRIP, RIGHT_GRIP, ChunkSpec, Observation, Segment, Start, Subtask
-from pilworld.world_model.checkpoint import save_model
-from pilworld.world_model.config import preset
-from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.latent.checkpoint import save_model
+from pilworld.world_model.latent.config import preset
+from pilworld.world_model.latent.model import PilWorldModel
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
 SPEC = ChunkSpec(rounds=2)

@@ -21,7 +21,7 @@ from pilworld.paired import PairedConfig, paired_run
 from pilworld.paired.runner import CONFIG_FILE, TIMINGS_FILE, load_model
 from pilworld.types import ChunkSpec
 from pilworld.world_model import V1_CHECKPOINT
-from pilworld.world_model.model import HistoryAblated, PilWorldModel
+from pilworld.world_model.latent.model import HistoryAblated, PilWorldModel
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"
 ONE = ChunkSpec(rounds=1)

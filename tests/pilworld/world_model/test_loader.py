@@ -21,10 +21,10 @@ from pilworld.world_model.base import (
     WorldModel,
     WorldModelInfo,
 )
-from pilworld.world_model.checkpoint import save_model
-from pilworld.world_model.config import preset
+from pilworld.world_model.latent.checkpoint import save_model
+from pilworld.world_model.latent.config import preset
+from pilworld.world_model.latent.model import PilWorldModel
 from pilworld.world_model.loader import FORMATS, adapter_names, format_of, load_world_model
-from pilworld.world_model.model import PilWorldModel
 
 WAN_INFO = WorldModelInfo(views=("head", "left_wrist"), height=16, width=16, future=3, history=2)
 
@@ -74,7 +74,7 @@ def test_the_frozen_baseline_has_no_optional_capability() -> None:
 
 def test_a_wan_folder_loads_by_its_format_and_a_stock_one_with_the_rigs_info(tmp_path: Path) -> None:
     pytest.importorskip("diffusers")
-    from pilworld.world_model.wan import WanWorldModel
+    from pilworld.world_model.wan.backend import WanWorldModel
 
     original = WanWorldModel.tiny_random(WAN_INFO)
     folder = tmp_path / "wan"

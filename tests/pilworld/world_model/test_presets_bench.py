@@ -8,8 +8,8 @@ import pytest
 
 from pilworld.bench.world_model_presets import run_presets_bench
 from pilworld.cli.main import main
-from pilworld.world_model.config import preset
-from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.latent.config import preset
+from pilworld.world_model.latent.model import PilWorldModel
 
 
 def test_presets_bench_counts_parameters_and_times_a_chunk() -> None:

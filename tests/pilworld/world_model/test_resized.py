@@ -19,9 +19,9 @@ from pilworld.paired.runner import load_model
 from pilworld.types import ChunkSpec
 from pilworld.world_model.base import PredictRequest, WorldModel, WorldModelBatch, WorldModelInfo, predict_one
 from pilworld.world_model.batching import resize_images
-from pilworld.world_model.checkpoint import save_model
-from pilworld.world_model.config import preset
-from pilworld.world_model.model import HistoryAblated, PilWorldModel
+from pilworld.world_model.latent.checkpoint import save_model
+from pilworld.world_model.latent.config import preset
+from pilworld.world_model.latent.model import HistoryAblated, PilWorldModel
 from pilworld.world_model.resized import ResizedWorldModel, upsample_images
 
 SIM = "configs/rig/sim_dual_ur5e.yaml"

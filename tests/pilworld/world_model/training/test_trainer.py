@@ -19,9 +19,9 @@ import torch
 from safetensors.torch import load_file
 
 from pilworld.config.rig import RigConfig
-from pilworld.world_model.config import preset
+from pilworld.world_model.latent.config import preset
+from pilworld.world_model.latent.model import PilWorldModel
 from pilworld.world_model.loader import load_world_model
-from pilworld.world_model.model import PilWorldModel
 from pilworld.world_model.training.data import DataSelection, TrainData, is_validation_episode
 from pilworld.world_model.training.trainer import DUMP_RANK_WEIGHTS_ENV, TrainConfig, Trainer
 

@@ -10,7 +10,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from pilworld.world_model.config import VAEConfig
+from pilworld.world_model.latent.config import VAEConfig
 
 
 def _groups(channels: int) -> int:

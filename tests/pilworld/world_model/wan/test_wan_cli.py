@@ -19,7 +19,7 @@ pytest.importorskip("diffusers")
 
 @pytest.mark.slow
 def test_a_paired_run_runs_the_wan_backend_from_its_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from pilworld.world_model.wan import WanWorldModel
+    from pilworld.world_model.wan.backend import WanWorldModel
 
     rig, spec = RigConfig.load(SIM_RIG), ChunkSpec()
     info = WorldModelInfo(

@@ -12,7 +12,7 @@ import torch
 pytest.importorskip("diffusers")
 
 from pilworld.world_model.base import PredictRequest, WorldModel, WorldModelBatch, WorldModelInfo
-from pilworld.world_model.wan import HashedInstructionEncoder, WanWorldModel, _diffusers, wan_frame_count
+from pilworld.world_model.wan.backend import HashedInstructionEncoder, WanWorldModel, _diffusers, wan_frame_count
 
 INFO = WorldModelInfo(views=("head", "left_wrist"), height=16, width=16, future=3, history=2)
 

@@ -2,7 +2,7 @@
 clips using LoRA").
 
 Ψ_θ is a plain ``nn.Module``, so adapters go in with ``peft.inject_adapter_in_model`` on the attention
-and MLP projections (:data:`~pilworld.world_model.denoiser.LORA_TARGETS`); only the adapter weights
+and MLP projections (:data:`~pilworld.world_model.latent.denoiser.LORA_TARGETS`); only the adapter weights
 train. Adapters are saved in peft's file names (``adapter_config.json``, ``adapter.safetensors``).
 """
 
@@ -15,9 +15,9 @@ from typing import Any
 import torch
 from safetensors.torch import load_file
 
-from pilworld.world_model.denoiser import LORA_TARGETS
 from pilworld.world_model.folder import save_tensors
-from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.latent.denoiser import LORA_TARGETS
+from pilworld.world_model.latent.model import PilWorldModel
 
 
 def _peft() -> Any:

@@ -17,9 +17,9 @@ from numpy.typing import NDArray
 from torch import nn
 
 from pilworld.world_model.base import PredictRequest, WorldModelBatch, WorldModelInfo, predict_one
-from pilworld.world_model.config import WorldModelConfig
-from pilworld.world_model.denoiser import Denoiser
-from pilworld.world_model.vae import FrameVAE, to_uint8, to_unit
+from pilworld.world_model.latent.config import WorldModelConfig
+from pilworld.world_model.latent.denoiser import Denoiser
+from pilworld.world_model.latent.vae import FrameVAE, to_uint8, to_unit
 
 
 class PilWorldModel(nn.Module):

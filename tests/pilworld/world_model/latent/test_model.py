@@ -19,13 +19,13 @@ import torch
 from safetensors.torch import load_file
 
 from pilworld.world_model.base import PredictRequest, WorldModel, WorldModelBatch
-from pilworld.world_model.checkpoint import save_model
-from pilworld.world_model.config import WorldModelConfig, preset
-from pilworld.world_model.denoiser import Block
+from pilworld.world_model.latent.checkpoint import save_model
+from pilworld.world_model.latent.config import WorldModelConfig, preset
+from pilworld.world_model.latent.denoiser import Block
+from pilworld.world_model.latent.lora import add_lora, save_adapter
+from pilworld.world_model.latent.model import PilWorldModel
+from pilworld.world_model.latent.text import InstructionEncoder, word_buckets
 from pilworld.world_model.loader import load_world_model
-from pilworld.world_model.lora import add_lora, save_adapter
-from pilworld.world_model.model import PilWorldModel
-from pilworld.world_model.text import InstructionEncoder, word_buckets
 
 K = 3
 B = 2

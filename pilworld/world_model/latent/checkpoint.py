@@ -13,10 +13,10 @@ from pathlib import Path
 
 import torch
 
-from pilworld.world_model.config import WorldModelConfig
 from pilworld.world_model.folder import CONFIG_FILE, WEIGHTS_FILE, load_weights, read_folder_config, save_folder
-from pilworld.world_model.lora import apply_adapter
-from pilworld.world_model.model import PilWorldModel
+from pilworld.world_model.latent.config import WorldModelConfig
+from pilworld.world_model.latent.lora import apply_adapter
+from pilworld.world_model.latent.model import PilWorldModel
 
 FORMAT = "pilworld-world-model/1"
 ADAPTERS_DIR = "adapters"

@@ -21,8 +21,8 @@ from torch import nn
 from torch.nn import functional as F
 
 from pilworld.types import HEAD_VIEW
-from pilworld.world_model.config import WorldModelConfig
-from pilworld.world_model.text import InstructionEncoder
+from pilworld.world_model.latent.config import WorldModelConfig
+from pilworld.world_model.latent.text import InstructionEncoder
 
 # peft's LoRA targets (stage-2 fine-tuning): the attention and MLP projections of every block.
 LORA_TARGETS = ("qkv", "proj", "fc1", "fc2")
