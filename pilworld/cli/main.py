@@ -30,6 +30,7 @@ from pilworld.cli import (
     data,
     demo,
     imagine,
+    judge,
     paired,
     policy,
     report,
@@ -56,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     data.register(sub)
     paired.register(sub)
     imagine.register(sub)
+    judge.register(sub)
     bench.register(sub)
     policy.register(sub)
     report.register(sub)

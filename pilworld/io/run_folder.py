@@ -27,6 +27,7 @@ STARTS = "starts folder"
 COLLECTION = "collection"
 CONVERTED = "converted dataset"
 TRAINING = "training run"
+JUDGE = "judge"
 EPISODE_STORE = "episode store"  # a dataset with no marker: made before the markers, or by hand
 
 MARKERS: dict[str, str] = {
@@ -37,6 +38,7 @@ MARKERS: dict[str, str] = {
     "conversion.json": CONVERTED,
     "train_config.json": TRAINING,
     "settings.json": TRAINING,  # pilworld train composite
+    "judge.json": JUDGE,
 }
 MARKER_OF: dict[str, str] = {
     PAIRED: "paired_config.json",
@@ -45,6 +47,7 @@ MARKER_OF: dict[str, str] = {
     COLLECTION: "collection.json",
     CONVERTED: "conversion.json",
     TRAINING: "train_config.json",
+    JUDGE: "judge.json",
 }
 MADE_BY: dict[str, str] = {
     PAIRED: "pilworld paired run",
@@ -53,6 +56,7 @@ MADE_BY: dict[str, str] = {
     COLLECTION: "pilworld sim collect",
     CONVERTED: "pilworld data convert",
     TRAINING: "pilworld train",
+    JUDGE: "pilworld judge train",
 }
 # What a writer killed while creating a folder may leave (no marker yet): taken as empty.
 _CREATION_LEFTOVERS = {"meta"}

@@ -1,0 +1,143 @@
+"""``pilworld judge train|evaluate|show``: a success judge learned from labelled episodes (docs/judges.md).
+
+* ``train --data DIR[,DIR…] --out JUDGE [--labels sim_checker|operator|human]`` — a judge from the labelled
+  episodes of one or more datasets (any task: the instruction and subtask index are inputs, nothing else
+  about the task is read); it reports its out-of-fold agreement and the confidence below which it abstains.
+* ``evaluate JUDGE --data DIR[,DIR…] [--degrade blur|coarse|noise]`` — agreement with the labels of
+  episodes it did not see, abstentions apart; ``--degrade`` first passes the frames through what
+  imagined frames suffer.
+* ``show JUDGE`` — what a judge folder holds: its inputs, data, threshold and validation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from pilworld.options.bounds import Bound, bounded, check_count
+from pilworld.options.parse import parse_list
+
+FOLDS = Bound(2, 20, "networks, each validated on the episodes the others train on")
+STEPS = Bound(1, 100_000, "optimiser steps per network")
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "judge",
+        help="learned success judges: train one from labelled episodes, evaluate it, show it",
+        description="A success judge learned from labelled episodes of any task (docs/judges.md).",
+    )
+    cmds = p.add_subparsers(dest="judge_command", metavar="COMMAND")
+    cmds.required = True
+
+    t = cmds.add_parser("train", help="train a judge on the labelled episodes of one or more datasets")
+    t.add_argument("--data", required=True, help="dataset or run folder(s), comma-separated")
+    t.add_argument("--out", type=Path, required=True, help="judge folder to write (new or empty)")
+    t.add_argument(
+        "--labels",
+        default="sim_checker",
+        choices=("sim_checker", "operator", "human"),
+        help="whose verdicts to learn: the simulator's checker (default), the operator's, human judges' (majority)",
+    )
+    t.add_argument("--folds", type=int, default=5, help=bounded("networks in the ensemble (default 5)", FOLDS))
+    t.add_argument("--steps", type=int, default=None, help=bounded("optimiser steps per network (default 300)", STEPS))
+    t.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    t.add_argument("--name", default="", help="the judge's name (default: the folder's)")
+    t.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    t.set_defaults(handler=_train)
+
+    e = cmds.add_parser("evaluate", help="agreement of a judge with the labels of episodes it did not see")
+    e.add_argument("judge", type=Path, metavar="JUDGE", help="judge folder (pilworld judge train)")
+    e.add_argument("--data", required=True, help="dataset or run folder(s), comma-separated")
+    e.add_argument("--labels", default="sim_checker", choices=("sim_checker", "operator", "human"))
+    e.add_argument("--degrade", default="", choices=("", "blur", "coarse", "noise"), help="degrade frames first")
+    e.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    e.set_defaults(handler=_evaluate)
+
+    s = cmds.add_parser("show", help="what a judge folder holds")
+    s.add_argument("judge", type=Path, metavar="JUDGE", help="judge folder")
+    s.add_argument("--json", action="store_true", help="print it as one JSON object on the last line")
+    s.set_defaults(handler=_show)
+
+
+def _roots(text: str) -> list[Path]:
+    roots = [Path(x) for x in parse_list(text)]
+    if not roots:
+        raise ValueError("--data: expected at least one dataset folder")
+    missing = [str(r) for r in roots if not r.is_dir()]
+    if missing:
+        raise ValueError(f"--data: {', '.join(missing)}: not a folder")
+    return roots
+
+
+def _train(args: argparse.Namespace) -> int:
+    from pilworld.io.run_folder import JUDGE, check_out_folder
+    from pilworld.judges.learned.folder import load_judge, provenance, save_judge
+    from pilworld.judges.learned.labels import labelled_episodes
+    from pilworld.judges.learned.train import TrainSettings, train_judge
+
+    check_count(args.folds, "--folds", FOLDS)
+    check_count(args.steps, "--steps", STEPS)
+    roots = _roots(args.data)
+    if check_out_folder(args.out, JUDGE) == JUDGE:
+        raise ValueError(f"--out: {args.out} already holds a judge; choose a new folder (or delete that one)")
+    settings = TrainSettings(folds=args.folds, seed=args.seed, **({"steps": args.steps} if args.steps else {}))
+    labelled = labelled_episodes(roots, args.labels)  # every input checked before anything is written
+    n_yes = sum(lab.success for lab in labelled)
+    print(f"judge train: {len(labelled)} labelled episodes ({n_yes} successes) from {len(roots)} dataset(s)")
+    trained = train_judge(labelled, settings, progress=sys.stderr.isatty(), log=print)
+    name = args.name or args.out.name
+    save_judge(trained, args.out, provenance(labelled, args.labels), name)
+    folder = load_judge(args.out)  # what was written reads back
+    v = folder.validation
+    print(
+        f"judge {name!r} → {args.out}: out-of-fold agreement {v['accuracy_answered']:.1%} on the answered "
+        f"{v['answered']} of {v['episodes']}, abstaining below confidence {folder.threshold:.2f} "
+        f"({v['abstain_share']:.1%}); {v['seconds']['total']:.0f} s"
+    )
+    if args.json:
+        print(json.dumps({"judge": str(args.out), "name": name, "threshold": folder.threshold, "validation": v}))
+    return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from pilworld.judges.learned.evaluate import DEGRADATIONS, evaluate
+    from pilworld.judges.learned.judge import LearnedSuccessJudge
+
+    roots = _roots(args.data)
+    judge = LearnedSuccessJudge(args.judge)
+    result = evaluate(judge, roots, args.labels, degrade=DEGRADATIONS.get(args.degrade), progress=sys.stderr.isatty())
+    result = {"judge": str(args.judge), "labels": args.labels, "degrade": args.degrade or None, **result}
+    agree = result["agreement"]
+    print(
+        f"judge {judge.folder.name!r} on {result['episodes']} episodes: agreement "
+        f"{'n/a' if agree is None else f'{agree:.1%}'} on {result['answered']} answered, "
+        f"{result['abstained']} abstained ({result['abstain_share']:.1%})"
+    )
+    for key, row in result["per_instruction"].items():
+        a = row["agreement"]
+        print(f"  {key[:60]:60s} {row['episodes']:4d} episodes  {'n/a' if a is None else f'{a:.1%}':>6s}"
+              f"  abstained {row['abstained']}")  # fmt: skip
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    from pilworld.judges.learned.folder import CONFIG_FILE, load_judge
+
+    folder = load_judge(args.judge)
+    config = json.loads((folder.path / CONFIG_FILE).read_text())
+    v = folder.validation
+    print(f"judge {folder.name!r} ({folder.path}): {len(folder.nets)} networks, views {list(folder.spec.views)}")
+    print(f"  trained on {folder.data.get('episodes')} episodes ({folder.data.get('labels')} labels) of "
+          f"{len(folder.instructions)} instruction(s); abstains below confidence {folder.threshold:.2f}")  # fmt: skip
+    if v:
+        print(f"  out-of-fold agreement {v.get('accuracy_answered')} on {v.get('answered')} answered, "
+              f"abstaining on {v.get('abstain_share')}")  # fmt: skip
+    if args.json:
+        print(json.dumps(config))
+    return 0
