@@ -46,6 +46,24 @@ def _agreement(confusion: dict[str, int]) -> float | None:
     return round((confusion["tp"] + confusion["tn"]) / n, 4) if n else None
 
 
+_STORES: dict[str, EpisodeStore] = {}  # per worker process: a store's metadata is read once
+
+
+def _judge_one(job: tuple[str, int, Judge, RigConfig]) -> tuple[int, Any, Any, float, float] | None:
+    """(index, episode labels, verdict, load s, judge s) of one real-branch episode; None for an imagined one."""
+    root, index, judge, rig = job
+    if root not in _STORES:
+        _STORES[root] = EpisodeStore(root)
+    t0 = time.perf_counter()
+    ep = _STORES[root].load(index)
+    t1 = time.perf_counter()
+    if ep.origin != "real":
+        return None
+    verdict = judge.judge(ep, JudgeContext(rig=rig, task=episode_task(ep)))
+    labels = (episode_task(ep), ep.subtask_index, ep.checkpoint, ep.seed, str(ep.extra.get("checker", "")))
+    return index, labels, verdict, t1 - t0, time.perf_counter() - t1
+
+
 def run_judge_bench(
     dataset_root: str | Path,
     rig: RigConfig,
@@ -53,36 +71,38 @@ def run_judge_bench(
     judge: Judge | None = None,
     episodes: Iterable[int] | None = None,
     progress: bool = False,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """Agreement of ``judge`` (default: the image-only success judge) with the checker on ``dataset_root``.
 
-    Only real-branch episodes with a ``sim_checker`` verdict are judged (``episodes`` narrows them down).
+    Only real-branch episodes with a ``sim_checker`` verdict are judged (``episodes`` narrows them down),
+    in ``workers`` processes (the seconds per episode are then summed over them, wall time apart).
     Returns a JSON-friendly dict: ``n``, ``agreement``, ``per_task`` (``n``, ``agreement``,
     ``confusion`` {tp, fp, fn, tn}), ``seconds_per_episode`` (judging), ``load_seconds_per_episode``
     (decoding), ``disagreements`` (one dict per episode: index, task, subtask, checkpoint, seed, both
     verdicts and reasons) and the machine it ran on. Raises ``ValueError`` if there is nothing to judge.
     """
+    from pilworld.collection.workers import process_map, worker_count
+
     root = Path(dataset_root)
     judge = judge if judge is not None else VisionSuccessJudge()
-    store = EpisodeStore(root)
     checker = {o.episode_index: o.success for o in read_outcomes(root) if o.judge_id == CHECKER_ID}
     wanted = sorted(checker) if episodes is None else [i for i in episodes if i in checker]
     per_task: dict[str, dict[str, int]] = {}
     disagreements: list[dict[str, Any]] = []
     judge_s = load_s = 0.0
-    n = 0
+    n = abstained = 0
     t_start = time.perf_counter()
-    for i in wanted:
-        t0 = time.perf_counter()
-        ep = store.load(i)
-        t1 = time.perf_counter()
-        if ep.origin != "real":
+    jobs = [(str(root), i, judge, rig) for i in wanted]
+    for result in process_map(_judge_one, jobs, worker_count(workers, len(jobs))):
+        if result is None:
             continue
-        task = episode_task(ep)
-        verdict = judge.judge(ep, JudgeContext(rig=rig, task=task))
-        t2 = time.perf_counter()
-        load_s += t1 - t0
-        judge_s += t2 - t1
+        i, (task, subtask, checkpoint, seed, checker_reason), verdict, t_load, t_judge = result
+        load_s += t_load
+        judge_s += t_judge
+        if verdict.success is None:  # a learned judge abstains: the episode goes to people, not to its score
+            abstained += 1
+            continue
         n += 1
         said, truth = bool(verdict.success), bool(checker[i])
         confusion = per_task.setdefault(task, {"tp": 0, "fp": 0, "fn": 0, "tn": 0})
@@ -92,17 +112,17 @@ def run_judge_bench(
                 {
                     "episode_index": i,
                     "task": task,
-                    "subtask_index": ep.subtask_index,
-                    "checkpoint": ep.checkpoint,
-                    "seed": ep.seed,
+                    "subtask_index": subtask,
+                    "checkpoint": checkpoint,
+                    "seed": seed,
                     "checker": truth,
-                    "checker_reason": str(ep.extra.get("checker", "")),
+                    "checker_reason": checker_reason,
                     "judge": said,
                     "judge_reason": verdict.reason,
                 }
             )
         if progress:
-            print(f"episode {i}: {task} subtask {ep.subtask_index}: judge {said}, checker {truth}", flush=True)
+            print(f"episode {i}: {task} subtask {subtask}: judge {said}, checker {truth}", flush=True)
     if n == 0:
         raise ValueError(f"{root}: no real-branch episodes with a {CHECKER_ID!r} verdict to judge")
     total = {k: sum(c[k] for c in per_task.values()) for k in ("tp", "fp", "fn", "tn")}
@@ -110,14 +130,15 @@ def run_judge_bench(
         "judge_id": judge.judge_id,
         "dataset": str(root),
         "n": n,
+        "abstained": abstained,
         "agreement": _agreement(total),
         "confusion": total,
         "per_task": {
             task: {"n": sum(c.values()), "agreement": _agreement(c), "confusion": c}
             for task, c in sorted(per_task.items())
         },
-        "seconds_per_episode": round(judge_s / n, 3),
-        "load_seconds_per_episode": round(load_s / n, 3),
+        "seconds_per_episode": round(judge_s / (n + abstained), 3),
+        "load_seconds_per_episode": round(load_s / (n + abstained), 3),
         "wall_seconds": round(time.perf_counter() - t_start, 1),
         "disagreements": disagreements,
         "machine": machine_info(),
@@ -128,14 +149,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "dataset", type=Path, help="a dataset with sim_checker verdicts (e.g. from pilworld sim collect)"
     )
+    parser.add_argument(
+        "--judge",
+        type=Path,
+        default=None,
+        help="a learned judge folder (pilworld judge train); default: the paper tasks' hand-written reference",
+    )
+    parser.add_argument("--workers", type=int, default=1, help="processes judging episodes (default 1)")
     add_rig(parser)
     add_json(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """The agreement overall and per task with its confusion matrix."""
-    r = run_judge_bench(args.dataset, RigConfig.load(args.rig), progress=not args.json)
-    lines = [f"judges: image-only judge agrees with the checker on {r['agreement']} of {r['n']} real episodes"]
+    from pilworld.options.bounds import Bound, check_count
+
+    check_count(args.workers, "--workers", Bound(1, 256, "processes"))
+    judge: Judge | None = None
+    if args.judge is not None:
+        from pilworld.judges.learned.judge import LearnedSuccessJudge
+
+        judge = LearnedSuccessJudge(args.judge)
+    r = run_judge_bench(
+        args.dataset, RigConfig.load(args.rig), judge=judge, progress=not args.json, workers=args.workers
+    )
+    lines = [
+        f"judges: {r['judge_id']} agrees with the checker on {r['agreement']} of {r['n']} real episodes"
+        + (f" ({r['abstained']} abstained)" if r["abstained"] else "")
+    ]
     lines += [
         f"  {task}: {t['agreement']} of {t['n']}, confusion {t['confusion']}" for task, t in r["per_task"].items()
     ]

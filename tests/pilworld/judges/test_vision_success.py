@@ -235,7 +235,7 @@ def test_acceptance_on_fresh_seeds(tmp_path: Path, rig: RigConfig) -> None:
             workers=2,
             progress=False,
         )
-        report = run_judge_bench(root, rig)
+        report = run_judge_bench(root, rig, workers=2)
         n += report["n"]
         agree += round(report["agreement"] * report["n"])
         for task in ("sort_cubes", "stack_blocks"):  # every disagreement so far was a nested bowl
