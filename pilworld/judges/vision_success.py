@@ -11,7 +11,7 @@ How it decides, mirroring what the checker requires (in place, released, stable)
 
 1. **Where things are.** In each of the last ``window`` frames (2.4 s by default) the subtask's object
    (and, for a stacking subtask, the object it must sit on) is located by render-and-compare
-   (:mod:`pilworld.judges.vision_fit`) in every view that sees it: the head camera, and the wrist
+   (:mod:`pilworld.perception.silhouette`) in every view that sees it: the head camera, and the wrist
    cameras placed by forward kinematics from the stored state, which resolve millimetres when a
    gripper has just let go above the stack.
 2. **Released.** An arm *holds* the object in a frame when its fingers are closed (grip below
@@ -40,17 +40,15 @@ from calib.camera_model import CameraModel
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import JudgeKind
 from pilworld.judges.base import JudgeContext, Verdict
-from pilworld.judges.vision_fit import BoxShape, Fit, Pose2D
-from pilworld.judges.vision_fit import fit_pose as _fit_pose
 from pilworld.judges.vision_tasks import SubtaskGoal, TaskSpec, task_spec
-from pilworld.judges.vision_views import Labels, frame_cameras, label_image, object_view
 from pilworld.perception.colour import largest_blob
+from pilworld.perception.silhouette import BoxShape, Fit, Pose2D
+from pilworld.perception.silhouette import fit_pose as _fit_pose
+from pilworld.perception.views import IN_HAND_PX, IN_HAND_SHARE, Labels, frame_cameras, label_image, object_view
 from pilworld.types import ARM_LAYOUT, HEAD_VIEW
 
 HOLD_MAX = 0.85  # grip below this: the fingers are closed or resting on an object (measured or commanded)
 OPENING = 0.03  # grip increase over one frame that means the fingers are letting go
-IN_HAND_PX = 4.0  # radius of the disc around the projected tool point in a wrist view (at 128 px)
-IN_HAND_SHARE = 0.4  # share of that disc showing the object's colour when it is held
 MIN_EDGE_PX = 4.0  # outline pixels with evidence a view needs to count for an estimate's quality
 MIN_QUALITY = 0.3  # an estimate counts if its best view sees this much of it (see Estimate.quality)
 SETTLED_QUALITY = 0.5  # estimates clear enough to tell where the object ended up (see verdict)

@@ -12,8 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from pilworld.judges.vision_fit import BowlShape, BoxShape, Shape
 from pilworld.perception.colour import ColourClass
+from pilworld.perception.silhouette import BowlShape, BoxShape, Shape
 from simrig.tasks import PAPER_TASKS, Task, load_task
 from simrig.tasks import schema as s
 

@@ -18,10 +18,31 @@ from pilworld.judges.learned.inputs import CONTEXT_DIM
 
 WIDTH = 16  # channels of the first convolution; the trunk doubles them once
 EMBED = 48  # each view's, the state's and the context's embedding
+KEYPOINTS = 16  # spatial-softmax keypoints per view (arch "keypoints")
+ARCHS = ("grid", "keypoints")
 
 
 def _block(cin: int, cout: int) -> nn.Sequential:
     return nn.Sequential(nn.Conv2d(cin, cout, 3, 2, 1), nn.SiLU())
+
+
+class SpatialSoftmax(nn.Module):
+    """(N, K, H, W) feature maps → (N, 3·K): each map's expected x and y under its softmax, and its peak.
+
+    Where a feature fires, as coordinates (Levine et al., "End-to-End Training of Deep Visuomotor
+    Policies", 2016): "the object ended up in the bowl" becomes a relation between two points that a small
+    head learns from few examples wherever the scene puts them, which a flattened grid must learn per cell.
+    """
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        N, K, H, W = x.shape
+        flat = x.flatten(2)
+        prob = flat.softmax(-1).view(N, K, H, W)
+        ys = torch.linspace(-1, 1, H, device=x.device)
+        xs = torch.linspace(-1, 1, W, device=x.device)
+        ex = (prob.sum(2) * xs).sum(-1)
+        ey = (prob.sum(3) * ys).sum(-1)
+        return torch.cat([ex, ey, flat.amax(-1)], dim=1)
 
 
 class JudgeNet(nn.Module):
@@ -30,14 +51,29 @@ class JudgeNet(nn.Module):
     state_mean: torch.Tensor
     state_std: torch.Tensor
 
-    def __init__(self, n_views: int, state_dim: int, side: int, width: int = WIDTH, dropout: float = 0.3) -> None:
+    def __init__(
+        self, n_views: int, state_dim: int, side: int, width: int = WIDTH, dropout: float = 0.3, arch: str = "grid"
+    ) -> None:
         super().__init__()
         if side % 16:
             raise ValueError(f"side: expected a multiple of 16, got {side}")
+        if arch not in ARCHS:
+            raise ValueError(f"arch: expected one of {', '.join(ARCHS)}, got {arch!r}")
         w2 = 2 * width
-        self.trunk = nn.Sequential(_block(6, width), _block(width, w2), _block(w2, w2), _block(w2, w2))
-        grid = (side // 16) ** 2
-        self.views = nn.ModuleList(nn.Linear(w2 * grid, EMBED) for _ in range(n_views))
+        if arch == "grid":  # four stride-2 convolutions to a (side/16)² grid, flattened
+            self.trunk = nn.Sequential(_block(6, width), _block(width, w2), _block(w2, w2), _block(w2, w2))
+            n_feat = w2 * (side // 16) ** 2
+        else:  # two stride-2 convolutions to (side/4)², one more at that size, keypoints
+            self.trunk = nn.Sequential(
+                _block(6, width),
+                _block(width, w2),
+                nn.Conv2d(w2, w2, 3, 1, 1),
+                nn.SiLU(),
+                nn.Conv2d(w2, KEYPOINTS, 1),
+                SpatialSoftmax(),
+            )
+            n_feat = 3 * KEYPOINTS
+        self.views = nn.ModuleList(nn.Linear(n_feat, EMBED) for _ in range(n_views))
         self.state = nn.Sequential(nn.Linear(2 * state_dim, EMBED), nn.SiLU())
         self.context = nn.Linear(CONTEXT_DIM, EMBED)
         self.head = nn.Sequential(

@@ -34,7 +34,7 @@ from tqdm import tqdm
 from pilworld.judges.learned.examples import stack_examples, stored_example
 from pilworld.judges.learned.inputs import InputSpec, instruction_key
 from pilworld.judges.learned.labels import JudgeDataError, Labelled, open_store
-from pilworld.judges.learned.net import JudgeNet
+from pilworld.judges.learned.net import ARCHS, JudgeNet
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,7 @@ class TrainSettings:
     weight_decay: float = 1e-3
     side: int = 64
     width: int = 16
+    arch: str = "grid"  # the view encoder: "grid" (a flattened 4 × 4 grid) or "keypoints" (spatial softmax)
     abstain_budget: float = 0.04  # abstain on at most this share of the out-of-fold episodes …
     target: float = 0.99  # … and stop abstaining once the answered ones are this accurate
     seed: int = 0
@@ -59,6 +60,7 @@ class TrainSettings:
             "weight_decay": 0 <= self.weight_decay < 1,
             "side": self.side in (32, 48, 64, 80, 96, 112, 128),
             "width": 4 <= self.width <= 256 and self.width % 4 == 0,
+            "arch": self.arch in ARCHS,
             "abstain_budget": 0 <= self.abstain_budget < 1,
             "target": 0.5 < self.target <= 1,
         }
@@ -182,7 +184,7 @@ def train_net(data: Data, idx: NDArray[np.int64], settings: TrainSettings, seed:
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
     rng = np.random.default_rng(seed)
-    net = JudgeNet(len(spec.views), spec.state_dim, spec.side, settings.width)
+    net = JudgeNet(len(spec.views), spec.state_dim, spec.side, settings.width, arch=settings.arch)
     st = data.state[idx].reshape(-1, data.state.shape[-1])
     net.state_mean.copy_(torch.from_numpy(st.mean(0)))
     net.state_std.copy_(torch.from_numpy(st.std(0) + 1e-3))

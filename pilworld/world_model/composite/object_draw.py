@@ -19,9 +19,9 @@ from numpy.typing import NDArray
 
 from calib.camera_model import CameraModel
 from pilworld.config.rig import RigConfig
-from pilworld.judges.vision_fit import BoxShape, Pose2D, Shape, silhouette_uv
-from pilworld.judges.vision_views import wrist_camera
 from pilworld.perception.colour import ColourClass, segment
+from pilworld.perception.silhouette import BoxShape, Pose2D, Shape, silhouette_uv
+from pilworld.perception.views import wrist_camera
 from pilworld.types import HEAD_VIEW
 
 LIGHT = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])

@@ -16,7 +16,7 @@ from pilworld.data.episode import Episode
 from pilworld.judges.base import Judge, JudgeContext
 from pilworld.judges.vision_success import VisionSuccessJudge
 from pilworld.judges.vision_tasks import TASK_SPECS
-from pilworld.judges.vision_views import label_image
+from pilworld.perception.views import label_image
 from pilworld.types import ChunkSpec
 from tests.conftest import SIM_RIG
 

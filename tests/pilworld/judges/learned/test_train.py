@@ -156,3 +156,19 @@ def test_settings_are_validated() -> None:
         TrainSettings(folds=1)
     with pytest.raises(ValueError, match="side=50"):
         TrainSettings(side=50)
+
+
+def test_the_keypoint_encoder_gives_coordinates_in_the_image() -> None:
+    import torch
+
+    from pilworld.judges.learned.net import JudgeNet, SpatialSoftmax
+
+    maps = torch.full((1, 2, 8, 8), -30.0)
+    maps[0, 0, 0, 7] = 30.0  # top right
+    maps[0, 1, 7, 0] = 30.0  # bottom left
+    out = SpatialSoftmax()(maps)
+    assert torch.allclose(out[0, :4], torch.tensor([1.0, -1.0, -1.0, 1.0]), atol=1e-3)  # x0, x1, y0, y1
+    net = JudgeNet(2, 4, 32, arch="keypoints")
+    assert net(torch.rand(3, 2, 6, 32, 32), torch.rand(3, 8), torch.rand(3, 80)).shape == (3,)
+    with pytest.raises(ValueError, match="arch"):
+        TrainSettings(arch="transformer")

@@ -1,4 +1,4 @@
-"""The judge's views of one frame: each camera's model at that frame and what its pixels show.
+"""One frame as a camera sees it: each camera's model at that frame and what its pixels show.
 
 The head camera is fixed (``RigConfig.head_camera_model``). A wrist camera rides on its gripper: its
 model at frame ``i`` is the rig's wrist-camera intrinsics (a pinhole of ``fovy_deg``, square pixels,
@@ -25,9 +25,13 @@ from numpy.typing import NDArray
 
 from calib.camera_model import CameraModel
 from pilworld.config.rig import RigConfig
-from pilworld.judges.vision_fit import BoolArray, View
 from pilworld.perception.colour import ColourClass, segment
+from pilworld.perception.silhouette import BoolArray, View
 from pilworld.types import HEAD_VIEW
+
+# "Held": an arm's wrist view shows the object's colour between the fingertips, around the projected tool point.
+IN_HAND_PX = 4.0  # radius of the disc around the projected tool point in a wrist view (at 128 px)
+IN_HAND_SHARE = 0.4  # share of that disc showing the object's colour when it is held
 
 # Occluders: the arms are grey (HSV saturation ~0), the grippers and outlines dark. The table is a
 # light beige (saturation ~0.13–0.14, value ~0.7–0.8 on these renders), so neither test touches it.

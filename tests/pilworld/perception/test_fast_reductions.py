@@ -10,9 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
-from pilworld.judges import vision_fit
 from pilworld.judges.hallucination_scene import channel_max, channel_min
-from pilworld.judges.vision_fit import coverage, window_around
+from pilworld.perception import silhouette as vision_fit
+from pilworld.perception.silhouette import coverage, window_around
 
 
 @pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.float32, np.float64])
