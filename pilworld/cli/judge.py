@@ -22,6 +22,7 @@ from pilworld.options.parse import parse_list
 
 FOLDS = Bound(2, 20, "networks, each validated on the episodes the others train on")
 STEPS = Bound(1, 100_000, "optimiser steps per network")
+SEED = Bound(0, 2**32 - 1, "a training seed")
 
 
 def register(sub: Any) -> None:
@@ -44,7 +45,7 @@ def register(sub: Any) -> None:
     )
     t.add_argument("--folds", type=int, default=5, help=bounded("networks in the ensemble (default 5)", FOLDS))
     t.add_argument("--steps", type=int, default=None, help=bounded("optimiser steps per network (default 300)", STEPS))
-    t.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    t.add_argument("--seed", type=int, default=0, help=bounded("training seed (default 0)", SEED))
     t.add_argument("--name", default="", help="the judge's name (default: the folder's)")
     t.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     t.set_defaults(handler=_train)
@@ -81,6 +82,7 @@ def _train(args: argparse.Namespace) -> int:
 
     check_count(args.folds, "--folds", FOLDS)
     check_count(args.steps, "--steps", STEPS)
+    check_count(args.seed, "--seed", SEED)
     roots = _roots(args.data)
     if check_out_folder(args.out, JUDGE) == JUDGE:
         raise ValueError(f"--out: {args.out} already holds a judge; choose a new folder (or delete that one)")

@@ -50,6 +50,7 @@ def test_train_show_evaluate(data: tuple[Path, Path], tmp_path: Path, capsys: py
         (["--labels", "operator"], "no 'operator' labels"),
         (["--folds", "1"], "--folds: expected an integer in 2..20"),
         (["--steps", "0"], "--steps: expected an integer in 1..100,000"),
+        (["--seed", "-1"], "--seed: expected an integer in 0..4,294,967,295"),
     ],
 )
 def test_bad_input_is_one_line_and_writes_nothing(
