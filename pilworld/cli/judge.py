@@ -15,14 +15,18 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pilworld.options.bounds import Bound, bounded, check_count
 from pilworld.options.parse import parse_list
 
+if TYPE_CHECKING:
+    from pilworld.config.rig import RigConfig
+
 FOLDS = Bound(2, 20, "networks, each validated on the episodes the others train on")
 STEPS = Bound(1, 100_000, "optimiser steps per network")
 SEED = Bound(0, 2**32 - 1, "a training seed")
+RIG_HELP = "the rig the episodes were recorded on (default: the simulated rig)"
 
 
 def register(sub: Any) -> None:
@@ -46,6 +50,13 @@ def register(sub: Any) -> None:
     t.add_argument("--folds", type=int, default=5, help=bounded("networks in the ensemble (default 5)", FOLDS))
     t.add_argument("--steps", type=int, default=None, help=bounded("optimiser steps per network (default 300)", STEPS))
     t.add_argument("--seed", type=int, default=0, help=bounded("training seed (default 0)", SEED))
+    t.add_argument(
+        "--release-crop",
+        type=int,
+        default=0,
+        help="also read a crop of this many head pixels where a gripper last let go (0: off) [8..256]",
+    )
+    t.add_argument("--rig", type=Path, default=None, help=RIG_HELP)
     t.add_argument("--name", default="", help="the judge's name (default: the folder's)")
     t.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     t.set_defaults(handler=_train)
@@ -55,6 +66,7 @@ def register(sub: Any) -> None:
     e.add_argument("--data", required=True, help="dataset or run folder(s), comma-separated")
     e.add_argument("--labels", default="sim_checker", choices=("sim_checker", "operator", "human"))
     e.add_argument("--degrade", default="", choices=("", "blur", "coarse", "noise"), help="degrade frames first")
+    e.add_argument("--rig", type=Path, default=None, help=RIG_HELP)
     e.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     e.set_defaults(handler=_evaluate)
 
@@ -74,6 +86,13 @@ def _roots(text: str) -> list[Path]:
     return roots
 
 
+def _rig(path: Path | None) -> RigConfig:
+    from pilworld.config.rig import RigConfig
+    from simrig.files import SIM_RIG
+
+    return RigConfig.load(path or SIM_RIG)
+
+
 def _train(args: argparse.Namespace) -> int:
     from pilworld.io.run_folder import JUDGE, check_out_folder
     from pilworld.judges.learned.folder import load_judge, provenance, save_judge
@@ -83,14 +102,18 @@ def _train(args: argparse.Namespace) -> int:
     check_count(args.folds, "--folds", FOLDS)
     check_count(args.steps, "--steps", STEPS)
     check_count(args.seed, "--seed", SEED)
+    if args.release_crop and not 8 <= args.release_crop <= 256:
+        raise ValueError(f"--release-crop: expected 0 (off) or 8..256 pixels, got {args.release_crop}")
+    rig = _rig(args.rig)
     roots = _roots(args.data)
     if check_out_folder(args.out, JUDGE) == JUDGE:
         raise ValueError(f"--out: {args.out} already holds a judge; choose a new folder (or delete that one)")
-    settings = TrainSettings(folds=args.folds, seed=args.seed, **({"steps": args.steps} if args.steps else {}))
+    steps = {"steps": args.steps} if args.steps else {}
+    settings = TrainSettings(folds=args.folds, seed=args.seed, release_crop=args.release_crop, **steps)
     labelled = labelled_episodes(roots, args.labels)  # every input checked before anything is written
     n_yes = sum(lab.success for lab in labelled)
     print(f"judge train: {len(labelled)} labelled episodes ({n_yes} successes) from {len(roots)} dataset(s)")
-    trained = train_judge(labelled, settings, progress=sys.stderr.isatty(), log=print)
+    trained = train_judge(labelled, settings, progress=sys.stderr.isatty(), log=print, rig=rig)
     name = args.name or args.out.name
     save_judge(trained, args.out, provenance(labelled, args.labels), name)
     folder = load_judge(args.out)  # what was written reads back

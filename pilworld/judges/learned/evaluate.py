@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from pilworld.config.rig import RigConfig
 from pilworld.judges.learned.examples import Example, stored_example
 from pilworld.judges.learned.judge import LearnedSuccessJudge
 from pilworld.judges.learned.labels import labelled_episodes, open_store
@@ -68,6 +69,7 @@ def evaluate(
     *,
     degrade: Degrade | None = None,
     progress: bool = True,
+    rig: RigConfig | None = None,
 ) -> dict[str, Any]:
     """Agreement, abstentions and the confusion matrix of ``judge`` against ``source`` labels on ``roots``."""
     labelled = labelled_episodes(roots, source)
@@ -77,7 +79,7 @@ def evaluate(
     rows: list[tuple[str, bool, bool | None, float]] = []
     for lab in tqdm(labelled, desc="judging", unit="episode", disable=not progress):
         store = stores[lab.root]
-        example = stored_example(store, lab.index, judge.folder.spec)
+        example = stored_example(store, lab.index, judge.folder.spec, rig)
         if degrade is not None:
             example = degraded(example, degrade)
         instruction = str(store.labels(lab.index, store.frame_table(lab.index))["task"])

@@ -126,7 +126,7 @@ def load_judge(folder: str | Path) -> JudgeFolder:
         raise JudgeFolderError(f"{weights}: damaged, not a readable safetensors file ({detail})") from None
     nets = []
     for k in range(folds):
-        net = JudgeNet(len(spec.views), spec.state_dim, spec.side, settings.width, arch=settings.arch)
+        net = JudgeNet(spec.inputs, spec.state_dim, spec.side, settings.width, arch=settings.arch)
         prefix = f"fold{k}."
         state = {key[len(prefix) :]: v for key, v in tensors.items() if key.startswith(prefix)}
         try:

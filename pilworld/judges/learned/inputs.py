@@ -27,6 +27,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from pilworld.types import HEAD_VIEW
+
 SIDE = 64  # frames are resized to SIDE × SIDE (the rig's 128² cameras, halved)
 END_FRAMES = 3  # the last frames a verdict looks at (training draws one, judging averages all)
 TEXT_BUCKETS = 64  # hashed words and word pairs of the instruction
@@ -46,6 +48,12 @@ class InputSpec:
     image_sizes: tuple[tuple[int, int], ...]  # (height, width) per view, as recorded
     state_dim: int
     side: int = SIDE
+    release_crop: int = 0  # > 0: also a crop of this many head pixels where a gripper last let go (needs the rig)
+
+    @property
+    def inputs(self) -> int:
+        """Image inputs the network reads: the views, and the release crop when there is one."""
+        return len(self.views) + (1 if self.release_crop else 0)
 
     def __post_init__(self) -> None:
         if not self.views:
@@ -54,18 +62,27 @@ class InputSpec:
             raise ValueError(f"image_sizes: expected one (height, width) per view, got {len(self.image_sizes)}")
         if self.state_dim < 1 or self.side < 16:
             raise ValueError(f"state_dim {self.state_dim} / side {self.side}: expected ≥ 1 / ≥ 16")
+        if self.release_crop and not 8 <= self.release_crop <= 256:
+            raise ValueError(f"release_crop: expected 0 or 8..256 pixels, got {self.release_crop}")
+        if self.release_crop and HEAD_VIEW not in self.views:
+            raise ValueError(
+                f"release_crop: the crop is cut from the head view {HEAD_VIEW!r}, not among {list(self.views)}"
+            )
 
     @classmethod
-    def from_views(cls, views: Mapping[str, tuple[int, int]], state_dim: int, side: int = SIDE) -> InputSpec:
+    def from_views(
+        cls, views: Mapping[str, tuple[int, int]], state_dim: int, side: int = SIDE, release_crop: int = 0
+    ) -> InputSpec:
         names = tuple(sorted(views))
         sizes = tuple((int(views[v][0]), int(views[v][1])) for v in names)
-        return cls(views=names, image_sizes=sizes, state_dim=state_dim, side=side)
+        return cls(views=names, image_sizes=sizes, state_dim=state_dim, side=side, release_crop=release_crop)
 
     def to_json(self) -> dict[str, Any]:
         return {
             "views": {v: list(s) for v, s in zip(self.views, self.image_sizes, strict=True)},
             "state_dim": self.state_dim,
             "side": self.side,
+            "release_crop": self.release_crop,
         }
 
     @classmethod
@@ -74,7 +91,7 @@ class InputSpec:
         if not isinstance(views, Mapping):
             raise ValueError(f"views: expected a mapping of view → [height, width], got {views!r}")
         sizes = {str(v): (int(s[0]), int(s[1])) for v, s in views.items()}
-        return cls.from_views(sizes, int(data["state_dim"]), int(data["side"]))
+        return cls.from_views(sizes, int(data["state_dim"]), int(data["side"]), int(data.get("release_crop", 0)))
 
     def check(self, views: Mapping[str, tuple[int, ...]], state_dim: int, what: str) -> None:
         """Raise :class:`JudgeInputError` naming what differs between ``what`` and the judge's training data."""

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import JudgeKind
 from pilworld.judges.base import JudgeContext, Verdict
@@ -63,9 +64,9 @@ class LearnedSuccessJudge:
             return Prediction(p, False, f"abstained: confidence {conf:.2f} < {f.threshold:.2f} (p={p:.2f})")
         return Prediction(p, True, f"p={p:.2f}")
 
-    def predict(self, episode: Episode) -> Prediction:
-        return self.predict_example(episode_example(episode, self.folder.spec), episode.task)
+    def predict(self, episode: Episode, rig: RigConfig | None = None) -> Prediction:
+        return self.predict_example(episode_example(episode, self.folder.spec, rig), episode.task)
 
     def judge(self, episode: Episode, context: JudgeContext) -> Verdict:
-        pred = self.predict(episode)
+        pred = self.predict(episode, context.rig)
         return Verdict(success=(pred.probability >= 0.5) if pred.confident else None, reason=pred.reason)

@@ -31,6 +31,7 @@ import torch.nn.functional as F
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from pilworld.config.rig import RigConfig
 from pilworld.judges.learned.examples import stack_examples, stored_example
 from pilworld.judges.learned.inputs import InputSpec, instruction_key
 from pilworld.judges.learned.labels import JudgeDataError, Labelled, open_store
@@ -47,6 +48,7 @@ class TrainSettings:
     side: int = 64
     width: int = 16
     arch: str = "grid"  # the view encoder: "grid" (a flattened 4 × 4 grid) or "keypoints" (spatial softmax)
+    release_crop: int = 0  # > 0: also read a crop of this many head pixels where a gripper last let go
     abstain_budget: float = 0.04  # abstain on at most this share of the out-of-fold episodes …
     target: float = 0.99  # … and stop abstaining once the answered ones are this accurate
     seed: int = 0
@@ -61,6 +63,7 @@ class TrainSettings:
             "side": self.side in (32, 48, 64, 80, 96, 112, 128),
             "width": 4 <= self.width <= 256 and self.width % 4 == 0,
             "arch": self.arch in ARCHS,
+            "release_crop": self.release_crop == 0 or 8 <= self.release_crop <= 256,
             "abstain_budget": 0 <= self.abstain_budget < 1,
             "target": 0.5 < self.target <= 1,
         }
@@ -90,12 +93,12 @@ class Data:
     instructions: list[str]
 
 
-def dataset_spec(labelled: Sequence[Labelled], side: int) -> InputSpec:
+def dataset_spec(labelled: Sequence[Labelled], side: int, release_crop: int = 0) -> InputSpec:
     """The cameras and state of the training data; every dataset must record the same."""
     spec: InputSpec | None = None
     for root in dict.fromkeys(lab.root for lab in labelled):
         s = open_store(root).spec
-        mine = InputSpec.from_views(s.views, s.state_dim, side)
+        mine = InputSpec.from_views(s.views, s.state_dim, side, release_crop)
         if spec is None:
             spec = mine
         elif (mine.views, mine.image_sizes, mine.state_dim) != (spec.views, spec.image_sizes, spec.state_dim):
@@ -108,13 +111,15 @@ def dataset_spec(labelled: Sequence[Labelled], side: int) -> InputSpec:
     return spec
 
 
-def read_data(labelled: Sequence[Labelled], spec: InputSpec, progress: bool = True) -> Data:
+def read_data(
+    labelled: Sequence[Labelled], spec: InputSpec, progress: bool = True, rig: RigConfig | None = None
+) -> Data:
     stores = {root: open_store(root) for root in dict.fromkeys(lab.root for lab in labelled)}
     examples, instructions = [], []
     group_ids: dict[tuple[str, int], int] = {}
     for lab in tqdm(labelled, desc="reading episodes", unit="episode", disable=not progress):
         store = stores[lab.root]
-        examples.append(stored_example(store, lab.index, spec))
+        examples.append(stored_example(store, lab.index, spec, rig))
         instructions.append(instruction_key(str(store.labels(lab.index, store.frame_table(lab.index))["task"])))
     groups = [group_ids.setdefault((str(lab.root), lab.seed), len(group_ids)) for lab in labelled]
     frames, state, context = stack_examples(examples)
@@ -184,7 +189,7 @@ def train_net(data: Data, idx: NDArray[np.int64], settings: TrainSettings, seed:
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
     rng = np.random.default_rng(seed)
-    net = JudgeNet(len(spec.views), spec.state_dim, spec.side, settings.width, arch=settings.arch)
+    net = JudgeNet(spec.inputs, spec.state_dim, spec.side, settings.width, arch=settings.arch)
     st = data.state[idx].reshape(-1, data.state.shape[-1])
     net.state_mean.copy_(torch.from_numpy(st.mean(0)))
     net.state_std.copy_(torch.from_numpy(st.std(0) + 1e-3))
@@ -275,11 +280,14 @@ def train_judge(
     *,
     progress: bool = True,
     log: Callable[[str], None] | None = None,
+    rig: RigConfig | None = None,
 ) -> TrainedJudge:
-    """Read the labelled episodes, train ``settings.folds`` networks, calibrate, choose the threshold."""
+    """Read the labelled episodes, train ``settings.folds`` networks, calibrate, choose the threshold.
+
+    ``rig``: the rig the episodes were recorded on; needed for ``settings.release_crop``."""
     t0 = time.perf_counter()
-    spec = dataset_spec(labelled, settings.side)
-    data = read_data(labelled, spec, progress)
+    spec = dataset_spec(labelled, settings.side, settings.release_crop)
+    data = read_data(labelled, spec, progress, rig)
     t_read = time.perf_counter() - t0
     folds = fold_of(data.groups, settings.folds, settings.seed)
     if len(np.unique(folds)) < settings.folds:

@@ -20,7 +20,7 @@ def rig() -> RigConfig:
 def _state(left: list[float], right: list[float]) -> np.ndarray:
     state = np.repeat(HOME_Q14[None], len(left), axis=0).astype(np.float32)
     state[:, LEFT_GRIP], state[:, RIGHT_GRIP] = left, right
-    state[:, 0] += np.linspace(0, 0.3, len(left))  # the left arm moves, so each frame's tool point differs
+    state[:, 0] -= np.linspace(0.4, 0.8, len(left))  # the left arm pans into the head view, a new tool point each frame
     return state
 
 
@@ -48,3 +48,27 @@ def test_crop_is_centred_and_repeats_the_border() -> None:
     assert c.shape == (8, 8, 3) and c[4, 4, 0] == 255
     corner = crop(image, (-5.0, 100.0), 8)  # outside: clamped to the image's corner
     assert corner.shape == (8, 8, 3)
+
+
+def test_a_release_crop_judge_reads_the_head_view_where_the_gripper_let_go(rig: RigConfig) -> None:
+    from pilworld.data.episode import Episode
+    from pilworld.judges.learned.examples import episode_example
+    from pilworld.judges.learned.inputs import InputSpec, JudgeInputError
+
+    state = _state([1, 0.2, 0.2, 0.2, 0.6, 1, 1, 1], [1.0] * 8)
+    r = last_release(state, rig)
+    assert r is not None and r.visible
+    head = np.zeros((8, 128, 128, 3), np.uint8)
+    u, v = round(r.uv[0]), round(r.uv[1])
+    head[:, v - 1 : v + 2, u - 1 : u + 2] = 255  # something bright where the gripper let go
+    images = {"cam_high": head, "cam_left_wrist": np.zeros_like(head)}
+    episode = Episode(images=images, state=state, action=state.copy(), task="put it there.")
+    spec = InputSpec.from_views({"cam_high": (128, 128), "cam_left_wrist": (128, 128)}, 14, side=32, release_crop=16)
+    example = episode_example(episode, spec, rig)
+    assert example.frames.shape == (3, 3, 6, 32, 32)  # 3 last frames, 2 views + the crop, first|last
+    crop_last = example.frames[0, 2, 3:].astype(float)  # the crop of the last frame (16 px → 32: 2× magnified)
+    assert crop_last[:, 14:18, 14:18].mean() > 200 and crop_last[:, :8, :8].max() == 0
+    with pytest.raises(JudgeInputError, match="needs the rig"):
+        episode_example(episode, spec, None)
+    with pytest.raises(ValueError, match="head view"):
+        InputSpec.from_views({"cam_left_wrist": (128, 128)}, 14, release_crop=16)
