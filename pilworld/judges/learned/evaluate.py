@@ -82,9 +82,10 @@ def evaluate(
         example = stored_example(store, lab.index, judge.folder.spec, rig)
         if degrade is not None:
             example = degraded(example, degrade)
-        instruction = str(store.labels(lab.index, store.frame_table(lab.index))["task"])
-        pred = judge.predict_example(example, instruction)
-        rows.append((instruction, lab.success, (pred.probability >= 0.5) if pred.confident else None, pred.probability))
+        pred = judge.predict_example(example)
+        rows.append(
+            (example.instruction, lab.success, (pred.probability >= 0.5) if pred.confident else None, pred.probability)
+        )
     out = agreement(rows)
     out["per_instruction"] = {key: agreement([r for r in rows if r[0] == key]) for key in sorted({r[0] for r in rows})}
     return out

@@ -27,6 +27,7 @@ class Example:
     frames: NDArray[np.uint8]  # (E, V, 6, S, S)
     state: NDArray[np.float32]  # (E, 2·D): first state, then the state at that last frame
     context: NDArray[np.float32]  # (CONTEXT_DIM,)
+    instruction: str  # as recorded (the context hashes it; the judge also checks it is one it knows)
 
 
 def release_uv(state: NDArray[np.floating], rig: RigConfig | None) -> tuple[float, float]:
@@ -70,7 +71,7 @@ def make_example(
 
     frames = np.stack([np.stack(stacks(e)) for e in ends])
     st = np.stack([np.concatenate([state[0], state[e]]) for e in ends]).astype(np.float32)
-    return Example(frames=frames, state=st, context=context_vector(instruction, subtask))
+    return Example(frames=frames, state=st, context=context_vector(instruction, subtask), instruction=instruction)
 
 
 def episode_example(episode: Episode, spec: InputSpec, rig: RigConfig | None = None) -> Example:

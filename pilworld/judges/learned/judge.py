@@ -48,11 +48,11 @@ class LearnedSuccessJudge:
     def kind(self) -> JudgeKind:
         return "vision"
 
-    def predict_example(self, example: Example, instruction: str) -> Prediction:
+    def predict_example(self, example: Example) -> Prediction:
         f = self.folder
-        key = instruction_key(instruction)
-        if key not in f.instructions:
-            return Prediction(float("nan"), False, f"abstained: instruction {instruction!r} not in its training data")
+        if instruction_key(example.instruction) not in f.instructions:
+            said = f"abstained: instruction {example.instruction!r} not in its training data"
+            return Prediction(float("nan"), False, said)
         frames = torch.from_numpy(example.frames).float().div_(255)  # (E, V, 6, S, S)
         state = torch.from_numpy(example.state)
         context = torch.from_numpy(np.repeat(example.context[None], len(frames), axis=0))
@@ -65,7 +65,7 @@ class LearnedSuccessJudge:
         return Prediction(p, True, f"p={p:.2f}")
 
     def predict(self, episode: Episode, rig: RigConfig | None = None) -> Prediction:
-        return self.predict_example(episode_example(episode, self.folder.spec, rig), episode.task)
+        return self.predict_example(episode_example(episode, self.folder.spec, rig))
 
     def judge(self, episode: Episode, context: JudgeContext) -> Verdict:
         pred = self.predict(episode, context.rig)

@@ -115,12 +115,11 @@ def read_data(
     labelled: Sequence[Labelled], spec: InputSpec, progress: bool = True, rig: RigConfig | None = None
 ) -> Data:
     stores = {root: open_store(root) for root in dict.fromkeys(lab.root for lab in labelled)}
-    examples, instructions = [], []
+    examples = [
+        stored_example(stores[lab.root], lab.index, spec, rig)
+        for lab in tqdm(labelled, desc="reading episodes", unit="episode", disable=not progress)
+    ]
     group_ids: dict[tuple[str, int], int] = {}
-    for lab in tqdm(labelled, desc="reading episodes", unit="episode", disable=not progress):
-        store = stores[lab.root]
-        examples.append(stored_example(store, lab.index, spec, rig))
-        instructions.append(instruction_key(str(store.labels(lab.index, store.frame_table(lab.index))["task"])))
     groups = [group_ids.setdefault((str(lab.root), lab.seed), len(group_ids)) for lab in labelled]
     frames, state, context = stack_examples(examples)
     return Data(
@@ -129,7 +128,7 @@ def read_data(
         context=context,
         labels=np.array([lab.success for lab in labelled], dtype=np.float32),
         groups=np.array(groups, dtype=np.int64),
-        instructions=instructions,
+        instructions=[instruction_key(e.instruction) for e in examples],
     )
 
 
