@@ -28,8 +28,7 @@ from pilworld.bench.flags import add_json, add_rig
 from pilworld.bench.output import emit
 from pilworld.config.rig import RigConfig
 from pilworld.data.outcomes import read_outcomes
-from pilworld.data.reader import EpisodeStore
-from pilworld.judges.base import Judge, JudgeContext, episode_task
+from pilworld.judges.base import Judge, JudgeContext, episode_task, worker_store
 from pilworld.judges.vision_success import VisionSuccessJudge
 
 CHECKER_ID = "sim_checker"  # the judge id pilworld.collection.collect records the checker's verdicts under
@@ -46,16 +45,11 @@ def _agreement(confusion: dict[str, int]) -> float | None:
     return round((confusion["tp"] + confusion["tn"]) / n, 4) if n else None
 
 
-_STORES: dict[str, EpisodeStore] = {}  # per worker process: a store's metadata is read once
-
-
 def _judge_one(job: tuple[str, int, Judge, RigConfig]) -> tuple[int, Any, Any, float, float] | None:
     """(index, episode labels, verdict, load s, judge s) of one real-branch episode; None for an imagined one."""
     root, index, judge, rig = job
-    if root not in _STORES:
-        _STORES[root] = EpisodeStore(root)
     t0 = time.perf_counter()
-    ep = _STORES[root].load(index)
+    ep = worker_store(root).load(index)
     t1 = time.perf_counter()
     if ep.origin != "real":
         return None
@@ -162,9 +156,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """The agreement overall and per task with its confusion matrix."""
-    from pilworld.options.bounds import Bound, check_count
+    from pilworld.options.bounds import WORKERS, check_count
 
-    check_count(args.workers, "--workers", Bound(1, 256, "processes"))
+    check_count(args.workers, "--workers", WORKERS)
     judge: Judge | None = None
     if args.judge is not None:
         from pilworld.judges.learned.judge import LearnedSuccessJudge

@@ -98,11 +98,16 @@ def judge_episode(store: EpisodeStore, index: int, judges: Sequence[Judge], rig:
 _STORES: dict[str, EpisodeStore] = {}  # per worker process: opening a store reads its metadata once
 
 
-def _judge_job(job: tuple[str, Sequence[Judge], RigConfig, int]) -> list[Outcome]:
-    root, judges, rig, index = job
+def worker_store(root: str) -> EpisodeStore:
+    """The episode store at ``root``, opened once per process (for judging jobs run in worker processes)."""
     if root not in _STORES:
         _STORES[root] = EpisodeStore(root)
-    return judge_episode(_STORES[root], index, judges, rig)
+    return _STORES[root]
+
+
+def _judge_job(job: tuple[str, Sequence[Judge], RigConfig, int]) -> list[Outcome]:
+    root, judges, rig, index = job
+    return judge_episode(worker_store(root), index, judges, rig)
 
 
 def judge_dataset(
