@@ -117,7 +117,7 @@ def run_judge_bench(
             )
         if progress:
             print(f"episode {i}: {task} subtask {subtask}: judge {said}, checker {truth}", flush=True)
-    if n == 0:
+    if n + abstained == 0:  # a judge that abstained on every episode still reports that (agreement None)
         raise ValueError(f"{root}: no real-branch episodes with a {CHECKER_ID!r} verdict to judge")
     total = {k: sum(c[k] for c in per_task.values()) for k in ("tp", "fp", "fn", "tn")}
     return {
