@@ -1,7 +1,8 @@
 """What a judge may see of a run: their own blinded queue of opaque item ids, and the validation of labels.
 
-Every judge gets all episodes of the run (both branches) in an order of their own, shuffled with a
-seed derived from the run's secret and the judge number, so it survives restarts but tells nothing.
+Every judge gets all episodes of the run (both branches), or the subset the app was started with (the
+episodes a learned judge abstained on), in an order of their own, shuffled with a seed derived from the
+run's secret and the judge number, so it survives restarts but tells nothing.
 An item id is ``HMAC(secret, "judge:episode")[:16]`` in hex: different per judge, and neither the order
 nor the episode index can be read from it. The judge-facing JSON carries only frames, fps, the
 instruction (the same in both branches), view names and the judge's own label.
@@ -12,6 +13,7 @@ from __future__ import annotations
 import json
 import random
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,8 +56,13 @@ def open_dataset(run_dir: str | Path) -> EpisodeStore:
 class Catalog:
     """The run's episodes and every judge's queue."""
 
-    def __init__(self, dataset: EpisodeStore, store: AnnotationStore) -> None:
+    def __init__(self, dataset: EpisodeStore, store: AnnotationStore, episodes: Sequence[int] | None = None) -> None:
         self.dataset = dataset
+        n = dataset.num_episodes
+        self.episodes = list(range(n)) if episodes is None else sorted(set(episodes))
+        bad = [e for e in self.episodes if not 0 <= e < n]
+        if bad:
+            raise ValueError(f"episodes {bad[:10]} are not in {dataset.root} (it has {n} episodes)")
         self.store = store
         self.views = ordered_views(list(dataset.spec.views))
         self.fps = dataset.fps
@@ -86,7 +93,7 @@ class Catalog:
         """Episode indices in this judge's order."""
         with self._lock:
             if judge not in self._queues:
-                order = list(range(self.num_episodes))
+                order = list(self.episodes)
                 random.Random(self.store.derive(f"order:{judge}")).shuffle(order)
                 self._queues[judge] = order
                 self._ids[judge] = {self.item_id(judge, e): e for e in order}

@@ -10,7 +10,6 @@ agreement statistics — and ``build_report`` rewrites ``report.html``.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +19,7 @@ from pilworld.annotate.catalog import open_dataset
 from pilworld.annotate.store import DB_FILE, AnnotationStore, StoredLabel, StoreError
 from pilworld.data import layout
 from pilworld.data.outcomes import Outcome, replace_judge_outcomes
+from pilworld.data.pairs import is_paired
 
 
 @dataclass
@@ -30,14 +30,6 @@ class ExportResult:
     metrics: Path | None = None
     report: Path | None = None
     skipped: str = ""  # why metrics and report were not recomputed
-
-
-def _extra(row: dict[str, Any]) -> dict[str, Any]:
-    try:
-        value = json.loads(row.get("extra") or "{}")
-    except (TypeError, json.JSONDecodeError):
-        return {}
-    return value if isinstance(value, dict) else {}
 
 
 def judge_id(judge: int) -> str:
@@ -88,7 +80,7 @@ def export_labels(
     result = ExportResult(outcomes_file=root / layout.OUTCOMES)
     result.removed = replace_judges(root, judges, outcomes)
     result.labels = {j: sum(1 for o in outcomes if o.judge_id == j) for j in sorted(judges)}
-    if (metrics or report) and not any("pair" in _extra(r) for r in dataset.episodes):
+    if (metrics or report) and not is_paired(dataset):
         result.skipped = "not a paired run (no episode has extra.pair): metrics and report need pairs"
         return result
     if metrics:

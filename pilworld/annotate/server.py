@@ -14,6 +14,7 @@ import importlib
 import json
 import re
 import threading
+from collections.abc import Sequence
 from http import HTTPStatus
 from http.cookies import CookieError, SimpleCookie
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -100,11 +101,11 @@ def parse_range(header: str, size: int) -> tuple[int, int] | None:
 class App:
     """Everything a request needs: the run's catalog, the label store and the media cache."""
 
-    def __init__(self, run_dir: Path, store: AnnotationStore) -> None:
+    def __init__(self, run_dir: Path, store: AnnotationStore, episodes: Sequence[int] | None = None) -> None:
         self.run_dir = run_dir
         self.store = store
         self.dataset = open_dataset(run_dir)
-        self.catalog = Catalog(self.dataset, store)
+        self.catalog = Catalog(self.dataset, store, episodes)
         self.media = MediaCache(run_dir, self.dataset, store)
 
     def progress(self, judge: int) -> tuple[int, int]:
@@ -325,7 +326,9 @@ class AnnotationServer:
     """The app for one run folder: ``start()`` / ``stop()`` in tests, ``serve_forever()`` in the CLI.
 
     ``judges`` makes judges 1..N exist (tokens issued now are in ``tokens``; judges from an earlier
-    start keep theirs, unless ``new_tokens``). ``port=0`` picks a free port; ``url`` is the base URL.
+    start keep theirs, unless ``new_tokens``). ``episodes`` limits every queue to those episodes (default
+    all; ``--abstained``: the ones a learned judge left to people). ``port=0`` picks a free port; ``url``
+    is the base URL.
     """
 
     def __init__(
@@ -337,6 +340,7 @@ class AnnotationServer:
         port: int = 0,
         allow_remote: bool = False,
         new_tokens: bool = False,
+        episodes: Sequence[int] | None = None,
     ) -> None:
         if not is_loopback(host) and not allow_remote:
             raise ValueError(
@@ -362,7 +366,7 @@ class AnnotationServer:
             self.tokens: dict[int, str] = {}
             if judges is not None:
                 self.tokens = self.store.ensure_judges(judges, new_tokens=new_tokens)
-            self.app = App(self.run_dir, self.store)
+            self.app = App(self.run_dir, self.store, episodes)
         except BaseException:
             self.httpd.server_close()
             raise

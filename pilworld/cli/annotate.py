@@ -35,6 +35,11 @@ def register(sub: Any) -> None:
     s.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host (plain HTTP!)")
     s.add_argument("--new-tokens", action="store_true", help="issue every judge a new token (old ones stop working)")
     s.add_argument("--no-export", action="store_true", help="do not export when stopped")
+    s.add_argument(
+        "--abstained",
+        action="store_true",
+        help="queue only the episodes the learned judge abstained on (pilworld judge apply JUDGE RUN_DIR)",
+    )
     s.set_defaults(handler=_serve)
 
     e = verbs.add_parser("export", help="labels -> outcomes (human_1 … human_N), then metrics.json and report.html")
@@ -62,11 +67,33 @@ def _print_export(run_dir: Path, report: bool = True) -> None:
         print(f"report: {result.report}", flush=True)
 
 
+def abstained_episodes(run_dir: Path) -> list[int]:
+    """The episodes the learned judge applied to ``run_dir`` left to people; one line naming what is missing."""
+    from pilworld.judges.learned.apply import RECORD, read_record
+
+    record = read_record(run_dir)
+    if record is None:
+        raise ValueError(
+            f"--abstained: no learned judge was applied to {run_dir} ({run_dir / RECORD} is missing); "
+            f"run `pilworld judge apply JUDGE {run_dir}` first"
+        )
+    if not record.get("complete"):
+        raise ValueError(
+            f"--abstained: the learned judge's pass over {run_dir} did not finish; "
+            f"run `pilworld judge apply JUDGE {run_dir}` again to complete it"
+        )
+    return [int(e) for e in record["abstained"]]
+
+
 def _serve(args: argparse.Namespace) -> int:
     from pilworld.annotate.server import AnnotationServer
     from pilworld.options.bounds import JUDGES, check_count
 
     check_count(args.judges, "--judges", JUDGES)
+    episodes = abstained_episodes(args.run_dir) if args.abstained else None
+    if episodes == []:
+        print(f"the learned judge answered every episode of {args.run_dir}: nothing is left to people", flush=True)
+        return 0
     server = AnnotationServer(
         args.run_dir,
         judges=args.judges,
@@ -74,9 +101,10 @@ def _serve(args: argparse.Namespace) -> int:
         port=args.port,
         allow_remote=args.allow_remote,
         new_tokens=args.new_tokens,
+        episodes=episodes,
     )
     judges = server.store.judges()
-    total = server.app.catalog.num_episodes
+    total = len(server.app.catalog.episodes)
     print(f"judging {total} episodes of {args.run_dir} at {server.url} ({len(judges)} judges)", flush=True)
     for j in judges:
         if j in server.tokens:

@@ -6,6 +6,9 @@
 * ``evaluate JUDGE --data DIR[,DIR…] [--degrade blur|coarse|noise]`` — agreement with the labels of
   episodes it did not see, abstentions apart; ``--degrade`` first passes the frames through what
   imagined frames suffer.
+* ``apply JUDGE RUN_DIR`` — verdicts on every episode of a run (both branches) as judge ``learned``, the
+  episodes it abstains on listed for people (``pilworld annotate serve RUN_DIR --abstained``), then the
+  run's metrics.json and report.html again.
 * ``show JUDGE`` — what a judge folder holds: its inputs, data, threshold and validation.
 """
 
@@ -17,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pilworld.options.bounds import Bound, bounded, check_count
+from pilworld.options.bounds import WORKERS, Bound, bounded, check_count
 from pilworld.options.parse import parse_list
 
 if TYPE_CHECKING:
@@ -56,6 +59,12 @@ def register(sub: Any) -> None:
         default=0,
         help="also read a crop of this many head pixels where a gripper last let go (0: off) [8..256]",
     )
+    t.add_argument(
+        "--abstain-budget",
+        type=float,
+        default=0.04,
+        help="abstain on at most this share of the validation episodes to reach 99 %% there (default 0.04) [0..0.9]",
+    )
     t.add_argument("--rig", type=Path, default=None, help=RIG_HELP)
     t.add_argument("--name", default="", help="the judge's name (default: the folder's)")
     t.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
@@ -69,6 +78,22 @@ def register(sub: Any) -> None:
     e.add_argument("--rig", type=Path, default=None, help=RIG_HELP)
     e.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     e.set_defaults(handler=_evaluate)
+
+    a = cmds.add_parser(
+        "apply",
+        help="judge every episode of a run; abstentions are queued for people",
+        description="Verdicts of a learned judge on both branches of every pair of a run, recorded as judge "
+        "'learned'; the episodes it abstains on are listed in RUN_DIR/judges/learned.json and queued for people by "
+        "'pilworld annotate serve RUN_DIR --abstained'. Resumable; applying another judge folder replaces the "
+        "previous one's verdicts. Then metrics.json and report.html are written again.",
+    )
+    a.add_argument("judge", type=Path, metavar="JUDGE", help="judge folder (pilworld judge train)")
+    a.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a paired run (or any episode store)")
+    a.add_argument("--rig", type=Path, default=None, help=RIG_HELP)
+    a.add_argument("--workers", type=int, default=1, help=bounded("judging processes (default 1)", WORKERS))
+    a.add_argument("--no-report", action="store_true", help="do not write metrics.json and report.html")
+    a.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    a.set_defaults(handler=_apply)
 
     s = cmds.add_parser("show", help="what a judge folder holds")
     s.add_argument("judge", type=Path, metavar="JUDGE", help="judge folder")
@@ -104,12 +129,20 @@ def _train(args: argparse.Namespace) -> int:
     check_count(args.seed, "--seed", SEED)
     if args.release_crop and not 8 <= args.release_crop <= 256:
         raise ValueError(f"--release-crop: expected 0 (off) or 8..256 pixels, got {args.release_crop}")
+    if not 0 <= args.abstain_budget <= 0.9:
+        raise ValueError(f"--abstain-budget: expected a share in 0..0.9, got {args.abstain_budget}")
     rig = _rig(args.rig)
     roots = _roots(args.data)
     if check_out_folder(args.out, JUDGE) == JUDGE:
         raise ValueError(f"--out: {args.out} already holds a judge; choose a new folder (or delete that one)")
     steps = {"steps": args.steps} if args.steps else {}
-    settings = TrainSettings(folds=args.folds, seed=args.seed, release_crop=args.release_crop, **steps)
+    settings = TrainSettings(
+        folds=args.folds,
+        seed=args.seed,
+        release_crop=args.release_crop,
+        abstain_budget=args.abstain_budget,
+        **steps,
+    )
     labelled = labelled_episodes(roots, args.labels)  # every input checked before anything is written
     n_yes = sum(lab.success for lab in labelled)
     print(f"judge train: {len(labelled)} labelled episodes ({n_yes} successes) from {len(roots)} dataset(s)")
@@ -149,6 +182,60 @@ def _evaluate(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result))
     return 0
+
+
+def _apply(args: argparse.Namespace) -> int:
+    from pilworld.judges.learned.apply import apply_judge
+    from pilworld.judges.learned.judge import LearnedSuccessJudge
+
+    check_count(args.workers, "--workers", WORKERS)
+    if not args.run_dir.is_dir():
+        raise ValueError(f"RUN_DIR: {args.run_dir} is not a folder")
+    judge = LearnedSuccessJudge(args.judge)
+    rig = _rig(args.rig)
+    result = apply_judge(judge, args.run_dir, rig, workers=args.workers, progress=sys.stderr.isatty())
+    if result.withdrawn:
+        print(f"withdrew {result.withdrawn} verdicts of the judge applied before")
+    print(
+        f"judge {judge.folder.name!r} on {args.run_dir}: {result.judged} of {result.episodes} episodes judged, "
+        f"{len(result.abstained)} left to people (pilworld annotate serve {args.run_dir} --abstained); "
+        f"record {result.record}"
+    )
+    out: dict[str, Any] = {
+        "judge": str(args.judge),
+        "run_dir": str(args.run_dir),
+        "episodes": result.episodes,
+        "judged": result.judged,
+        "abstained": result.abstained,
+        "record": str(result.record),
+    }
+    if not args.no_report:
+        out |= _rewrite_results(args.run_dir, rig)
+    if args.json:
+        print(json.dumps(out))
+    return 0
+
+
+def _rewrite_results(run_dir: Path, rig: RigConfig) -> dict[str, Any]:
+    """metrics.json and report.html of a paired run written again, now with the learned verdicts."""
+    from pilworld.data.pairs import is_paired
+    from pilworld.data.reader import EpisodeStore
+    from pilworld.metrics.report import METRICS_FILE, write_metrics
+    from pilworld.report import build_report
+
+    if not is_paired(EpisodeStore(run_dir)):
+        print("not a paired run (no episode belongs to a pair): no metrics.json or report.html written")
+        return {"metrics_json": None, "report_html": None}
+    metrics = write_metrics(run_dir)
+    report = build_report(run_dir, rig=rig)
+    mine = metrics["judges"]["per_judge"].get("learned", {})
+    print(f"metrics: {run_dir / METRICS_FILE} (learned judge: SR_real {_pct(mine.get('sr_real'))}, "
+          f"SR_imag {_pct(mine.get('sr_imag'))} over {mine.get('pairs_both', 0)} pairs); report: {report}")  # fmt: skip
+    return {"metrics_json": str(run_dir / METRICS_FILE), "report_html": str(report)}
+
+
+def _pct(x: Any) -> str:
+    return "n/a" if x is None else f"{100 * float(x):.0f} %"
 
 
 def _show(args: argparse.Namespace) -> int:

@@ -57,6 +57,14 @@ def _extra(row: dict[str, Any]) -> dict[str, Any]:
     return value if isinstance(value, dict) else {}
 
 
+def is_paired(store: EpisodeStore) -> bool:
+    """Whether any episode of ``store`` belongs to a pair (a paired run; metrics and the report need pairs)."""
+    try:
+        return any("pair" in _extra(r) for r in store.episodes)
+    except (TypeError, json.JSONDecodeError):
+        return False
+
+
 def _task(row: dict[str, Any], extra: dict[str, Any]) -> str:
     for key in ("task", "sim_task"):  # task files record ``task``; older runs ``sim_task`` only
         if extra.get(key):

@@ -113,7 +113,7 @@ def compute_run_metrics(
         "tasks": tasks,
         "settings": settings,
         "overall": overall,
-        "judges": judge_summary(paired, scores),
+        "judges": judge_summary(paired, scores) | {"learned": applied_judge(root)},
         "bootstrap": {
             "resamples": bootstrap,
             "seed": seed,
@@ -134,6 +134,19 @@ def compute_run_metrics(
         out["single_step"] = {"reason": "disabled by the caller"}
     result: dict[str, Any] = rounded(out)
     return result
+
+
+def applied_judge(root: str | Path) -> dict[str, Any] | None:
+    """Which learned judge gave the run's ``learned`` verdicts (``pilworld judge apply``), with its validation
+    figures and how many episodes it left to people; None when none was applied."""
+    from pilworld.judges.learned.apply import read_record
+
+    record = read_record(root)
+    if record is None:
+        return None
+    keep = ("name", "folder", "sha256", "threshold", "validation", "trained_on", "episodes", "judged", "complete")
+    abstained = record.get("abstained")
+    return {k: record.get(k) for k in keep} | {"abstained": None if abstained is None else len(abstained)}
 
 
 def write_metrics(root: str | Path, out_path: str | Path | None = None, **kwargs: Any) -> dict[str, Any]:

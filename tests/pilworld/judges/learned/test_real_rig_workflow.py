@@ -1,0 +1,116 @@
+"""The learned judge's workflow on a rig, no code (docs/judges.md, "On a real rig"), end to end on the fake rig.
+
+A pilot of paired subtasks of a task file no code knows, with an operator's verdicts at the terminal →
+``pilworld judge train --labels operator`` → ``pilworld judge apply`` gives every episode of the run a verdict
+or leaves it to people → ``pilworld annotate serve --abstained`` queues exactly those → their labels join
+the learned verdicts in metrics.json, which names the judge that gave them.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from pilworld.annotate.server import AnnotationServer
+from pilworld.annotate.store import Label
+from pilworld.cli.annotate import abstained_episodes
+from pilworld.cli.main import main
+from pilworld.data.outcomes import read_outcomes
+from pilworld.judges.learned.apply import LEARNED_ID, RECORD
+from pilworld.paired.config import PairedConfig
+from pilworld.paired.operator import OPERATOR_JUDGE, ConsoleOperator
+from pilworld.paired.runner import paired_run
+from pilworld.types import ChunkSpec
+
+ROOT = Path(__file__).resolve().parents[4]
+FAKE = str(ROOT / "configs" / "rig" / "fake_dual_ur5e.yaml")
+TASK = Path(__file__).parent / "data" / "puck_on_coaster.yaml"  # in no package, read by no judge
+SUBTASKS = 6
+VERDICTS = ["y", "n", "n", "y", "y", "n"]  # the operator's, one per subtask
+
+
+@pytest.fixture(scope="module")
+def pilot(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Six paired subtasks on the fake rig; the operator sets up each scene (Enter) and says yes or no."""
+    answers = iter(a for v in VERDICTS for a in ("", v))
+    operator = ConsoleOperator(ask=lambda _: next(answers), tell=lambda _: None)
+    out = tmp_path_factory.mktemp("workflow") / "pilot"
+    cfg = PairedConfig(
+        rig=FAKE,
+        task=str(TASK),
+        checkpoints=["scripted_step_05k"],
+        subtasks=SUBTASKS,
+        out=str(out),
+        spec=ChunkSpec(rounds=1),
+    )
+    paired_run(cfg, progress=False, operator=operator)
+    return out
+
+
+def test_operator_verdicts_train_a_judge_that_judges_the_run_and_queues_the_rest(
+    pilot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    said = [o for o in read_outcomes(pilot) if o.judge_id == OPERATOR_JUDGE]
+    assert len(said) == SUBTASKS and sorted(o.success for o in said) == sorted(v == "y" for v in VERDICTS)
+
+    judge = tmp_path / "judge"
+    train = ["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
+             "--folds", "2", "--steps", "8", "--abstain-budget", "0.5", "--json"]  # fmt: skip
+    assert main(train) == 0
+    trained = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert trained["validation"]["episodes"] == SUBTASKS  # the operator's verdicts, real branch only
+
+    assert main(["judge", "apply", str(judge), str(pilot), "--rig", FAKE, "--json"]) == 0
+    applied = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    episodes = 2 * SUBTASKS  # both branches of every pair
+    rows = {o.episode_index for o in read_outcomes(pilot) if o.judge_id == LEARNED_ID}
+    abstained = applied["abstained"]
+    assert applied["episodes"] == episodes and applied["judged"] == len(rows)
+    assert sorted(rows | set(abstained)) == list(range(episodes)) and not rows & set(abstained)
+    assert rows and abstained  # a judge this unsure (8 steps on 6 labels) answers some and abstains on others
+
+    metrics = json.loads((pilot / "metrics.json").read_text())
+    learned = metrics["judges"]["learned"]
+    assert learned["folder"] == str(judge.resolve()) and learned["abstained"] == len(abstained)
+    assert learned["trained_on"]["labels"] == "operator"
+    assert LEARNED_ID in metrics["judges"]["per_judge"]
+
+    # The people's queue is exactly what the judge left to them; their labels join the outcomes.
+    assert abstained_episodes(pilot) == abstained
+    server = AnnotationServer(pilot, judges=1, episodes=abstained)
+    assert sorted(server.app.catalog.queue(1)) == abstained
+    server.httpd.server_close()
+    server.store.put_label(1, abstained[0], Label(success=True, first_hallucination_frame=None, category=None))
+    assert main(["annotate", "export", str(pilot), "--no-report"]) == 0
+    humans = [o for o in read_outcomes(pilot) if o.judge_id == "human_1"]
+    assert [o.episode_index for o in humans] == [abstained[0]]
+
+
+def test_apply_resumes_and_another_judge_replaces_the_verdicts(
+    pilot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A second apply of the same judge changes nothing; another judge's verdicts replace the first's."""
+    base = ["--data", str(pilot), "--labels", "operator", "--rig", FAKE, "--folds", "2", "--steps", "4"]
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert main(["judge", "train", *base, "--out", str(a)]) == 0
+    assert main(["judge", "train", *base, "--seed", "1", "--out", str(b)]) == 0
+    assert main(["judge", "apply", str(a), str(pilot), "--rig", FAKE, "--no-report"]) == 0
+    first = {o.episode_index: o.success for o in read_outcomes(pilot) if o.judge_id == LEARNED_ID}
+    assert main(["judge", "apply", str(a), str(pilot), "--rig", FAKE, "--no-report"]) == 0
+    assert {o.episode_index: o.success for o in read_outcomes(pilot) if o.judge_id == LEARNED_ID} == first
+    capsys.readouterr()
+    assert main(["judge", "apply", str(b), str(pilot), "--rig", FAKE, "--no-report"]) == 0
+    record = json.loads((pilot / RECORD).read_text())
+    assert record["folder"] == str(b.resolve()) and record["complete"]
+    out = capsys.readouterr().out
+    assert ("withdrew" in out) == bool(first)  # the first judge's verdicts went, if it gave any
+
+
+def test_abstained_needs_an_applied_judge(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run = tmp_path / "run"
+    run.mkdir()
+    assert main(["annotate", "serve", str(run), "--judges", "1", "--abstained"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "judge apply" in err[0], err
