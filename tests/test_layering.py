@@ -102,7 +102,6 @@ LEARNERS = ("pilworld.world_model", "pilworld.judges")
 LEGACY_TASK_READERS = {
     "pilworld.judges.vision_tasks": "the hand-written reference judge of the paper's three tasks",
     "pilworld.judges.vision_success": "its success half (reads vision_tasks)",
-    "pilworld.judges.hallucination_scene": "the hand-written hallucination detector's object colours",
     "pilworld.world_model.composite.objects": "v2's tracked objects (the paper tasks' shapes via vision_tasks)",
 }
 

@@ -20,6 +20,9 @@ hallucination categories (appendix "Hallucination-free ratio") from frame ``k`` 
   Shifting the state instead (images untouched) would put the discontinuity into the commanded
   trajectory, which in the imagined branch is the policy's output, not the world model's.
 
+Objects are told apart by colour, found in the episode's own head view
+(:func:`pilworld.perception.objects.discover_colours_over`), so an episode of any task can be faulted.
+
 A fault that cannot be applied at ``k`` (no object visible at ``k - 1``, no free table spot, the arms
 never move far enough after ``k``) raises :class:`FaultError`; :func:`inject` draws the object and
 the spot with a seeded generator and is what the benchmark and the tests call.
@@ -41,9 +44,9 @@ from pilworld.judges.hallucination_scene import (
     dilate,
     learn_table,
     table_mask,
-    task_classes,
 )
 from pilworld.perception.colour import ColourClass, segment
+from pilworld.perception.objects import discover_colours_over
 from pilworld.types import HEAD_VIEW
 
 FAULTS: tuple[str, ...] = ("delete_object", "duplicate_object", "swap_views", "teleport_arm")
@@ -63,10 +66,11 @@ def _scale(ep: Episode) -> float:
     return float(ep.images[HEAD_VIEW].shape[2]) / REFERENCE_WIDTH
 
 
-def _classes(ep: Episode) -> list[ColourClass]:
-    classes = task_classes(episode_task(ep), ep.task)
+def object_colours(ep: Episode) -> list[ColourClass]:
+    """The episode's object colours, found in its head view (no task knowledge: any task can be faulted)."""
+    classes = discover_colours_over(ep.images[HEAD_VIEW])
     if not classes:
-        raise FaultError(f"task {episode_task(ep)!r} ({ep.task!r}): no known object colours")
+        raise FaultError(f"task {episode_task(ep)!r} ({ep.task!r}): no coloured object visible in {HEAD_VIEW}")
     return classes
 
 
@@ -83,7 +87,7 @@ def _with(ep: Episode, images: dict[str, NDArray[np.uint8]], fault: dict[str, ob
 
 def visible_objects(ep: Episode, frame: int) -> dict[str, int]:
     """Head-view pixels of each task object at ``frame`` (objects with fewer than MIN_VISIBLE_PX left out)."""
-    classes = _classes(ep)
+    classes = object_colours(ep)
     masks = segment(ep.images[HEAD_VIEW][frame], classes)
     need = MIN_VISIBLE_PX * _scale(ep) ** 2
     return {c.name: int(masks[c.name].sum()) for c in classes if masks[c.name].sum() >= need}
@@ -115,7 +119,7 @@ def _local_table_colour(
 def delete_object(ep: Episode, k: int, colour: str | None = None) -> Episode:
     """From frame ``k`` on, paint object ``colour`` (a class name, default the largest at ``k - 1``) away."""
     _check_k(ep, k)
-    classes = _classes(ep)
+    classes = object_colours(ep)
     if colour is None:
         seen = visible_objects(ep, k - 1)
         if not seen:
@@ -146,7 +150,7 @@ def duplicate_object(
 ) -> Episode:
     """From frame ``k`` on, show a second ``colour`` object (default the largest at ``k``) on free table."""
     _check_k(ep, k)
-    classes = _classes(ep)
+    classes = object_colours(ep)
     rng = rng or np.random.default_rng(0)
     head = ep.images[HEAD_VIEW]
     T, H, W, _ = head.shape

@@ -16,15 +16,19 @@ earliest; ties go to the category listed first in :data:`CATEGORIES`:
 
 Each unexplained change must still be there one frame later; the reported frame is where it first
 showed. It needs the state (the measured joints in the real branch, the commanded stride-aligned
-actions in the imagined one) and the rig's head camera and kinematics, and for the object checks the
-task's object colours (``pilworld.policies.scripted.knowledge``); without known colours only the arm and
-view checks run. Measured detection and false-positive rates: ``pilworld bench hallucination``
+actions in the imagined one) and the rig's head camera and kinematics. The objects' colours are found in
+the episode itself (:func:`pilworld.perception.objects.discover_colours_over`: saturated hues forming
+compact blobs, away from the predicted arms, in frames spread over the episode since an arm often hides
+the objects at a subtask's start), so no task knowledge is read; a scene without coloured objects gets
+only the arm and view checks. Measured detection and false-positive rates: ``pilworld bench hallucination``
 (``pilworld/bench/hallucination.py``) and docs/judges.md.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
@@ -48,9 +52,9 @@ from pilworld.judges.hallucination_scene import (
     object_labels,
     predict_arms,
     table_mask,
-    task_classes,
 )
 from pilworld.judges.hallucination_wrist import check_wrist_objects
+from pilworld.perception.objects import discover_colours_over
 from pilworld.types import HEAD_VIEW
 
 __all__ = ["CATEGORIES", "HallucinationDetector", "find_hallucinations", "head_scene"]
@@ -69,9 +73,11 @@ def head_scene(
             f"episode: {HEAD_VIEW} frames are {images.shape[2]}x{images.shape[1]} but the rig's head camera is "
             f"{cam.width}x{cam.height}"
         )
-    classes = task_classes(task, episode.task)
-    labels = object_labels(images, classes, (thresholds or Thresholds()).faded_saturation)
     arms = predict_arms(rig, episode.state, shape)
+    # The objects' colours, found in frames spread over the episode away from the predicted arms (an arm
+    # often hides objects at a subtask's start): no task knowledge.
+    classes = discover_colours_over(images, exclude=np.stack([dilate(a, 2) for a in arms.whole]))
+    labels = object_labels(images, classes, (thresholds or Thresholds()).faded_saturation)
     # The table's colour from the start frame (real in both branches), away from arms and objects.
     table = learn_table(images[0], dilate(arms.whole[0], 3) | dilate(labels[0] > 0, 2))
     return HeadScene(

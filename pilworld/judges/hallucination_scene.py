@@ -251,16 +251,6 @@ def colourful_mask(images: Image, min_saturation: float = 0.3, min_value: float 
     return out
 
 
-def task_classes(task: str, instruction: str = "") -> list[ColourClass]:
-    """The object colours of a paper task (by name, else by instruction); [] when unknown."""
-    from pilworld.judges.vision_tasks import task_spec
-
-    try:
-        return list(task_spec(task, instruction).classes)
-    except ValueError:
-        return []
-
-
 def disk(radius_px: float) -> NDArray[np.uint8]:
     """A filled disc structuring element of the given radius (at least a single pixel)."""
     r = max(0, round(radius_px))

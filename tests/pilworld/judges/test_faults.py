@@ -15,11 +15,11 @@ from pilworld.judges.faults import (
     delete_object,
     duplicate_object,
     inject,
+    object_colours,
     swap_views,
     teleport_arm,
     visible_objects,
 )
-from pilworld.judges.hallucination_scene import task_classes
 from pilworld.perception.colour import segment
 from pilworld.types import HEAD_VIEW
 from tests.pilworld.judges.hallucination_data import clean_episodes, sim_rig
@@ -57,7 +57,7 @@ def test_delete_object_paints_the_object_away_in_every_view(episodes: list[Episo
     k, name = _k_with_object(ep)
     out = delete_object(ep, k, name)
     _unchanged_before(ep, out, k)
-    classes = task_classes("stack_blocks")
+    classes = object_colours(ep)
     for v in ep.images:
         before = sum(int(segment(ep.images[v][t], classes)[name].sum()) for t in range(k, ep.length))
         after = sum(int(segment(out.images[v][t], classes)[name].sum()) for t in range(k, ep.length))
@@ -78,7 +78,7 @@ def test_duplicate_object_adds_a_second_blob_in_the_head_view_only(episodes: lis
     for v in ep.images:
         if v != HEAD_VIEW:
             np.testing.assert_array_equal(out.images[v], ep.images[v])
-    classes = task_classes("stack_blocks")
+    classes = object_colours(ep)
     mask = segment(out.images[HEAD_VIEW][k], classes)[name].astype(np.uint8)
     _n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     big = [a for a in stats[1:, cv2.CC_STAT_AREA] if a >= 6]
