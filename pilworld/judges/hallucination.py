@@ -76,7 +76,7 @@ def head_scene(
     arms = predict_arms(rig, episode.state, shape)
     # The objects' colours, found in frames spread over the episode away from the predicted arms (an arm
     # often hides objects at a subtask's start): no task knowledge.
-    classes = discover_colours_over(images, exclude=np.stack([dilate(a, 2) for a in arms.whole]))
+    classes = discover_colours_over(images, exclude=np.stack([dilate(a, 2) for a in arms.whole]), samples=20)
     labels = object_labels(images, classes, (thresholds or Thresholds()).faded_saturation)
     # The table's colour from the start frame (real in both branches), away from arms and objects.
     table = learn_table(images[0], dilate(arms.whole[0], 3) | dilate(labels[0] > 0, 2))
