@@ -97,12 +97,12 @@ def test_checker_sees_a_violation(tmp_path: Path) -> None:
 # scripted policies' task knowledge. The hand-written reference judge of the paper's tasks (and v2's tracked
 # objects, which reuse it) are the named exceptions until the learned judges and world model v3 replace them.
 TASK_READERS = ("simrig", "pilworld.policies.scripted")
-TASK_KNOWLEDGE = ("simrig.tasks", "pilworld.policies.scripted", "pilworld.judges.vision_tasks")
+TASK_KNOWLEDGE = ("simrig.tasks", "pilworld.policies.scripted", "pilworld.reference.paper_tasks")
 LEARNERS = ("pilworld.world_model", "pilworld.judges")
 LEGACY_TASK_READERS = {
-    "pilworld.judges.vision_tasks": "the hand-written reference judge of the paper's three tasks",
-    "pilworld.judges.vision_success": "its success half (reads vision_tasks)",
-    "pilworld.world_model.composite.objects": "v2's tracked objects (the paper tasks' shapes via vision_tasks)",
+    "pilworld.reference.paper_tasks": "the hand-written reference judge of the paper's three tasks",
+    "pilworld.judges.vision_success": "its success half (reads pilworld.reference.paper_tasks)",
+    "pilworld.world_model.composite.objects": "v2's tracked objects (the paper tasks' shapes, from the reference)",
 }
 
 
@@ -128,6 +128,17 @@ def test_world_model_and_judges_read_no_task_knowledge(path: Path) -> None:
     assert not bad, f"{module} reads task knowledge {bad}: the world model and the judges learn from episodes"
 
 
+@pytest.mark.parametrize(
+    "path",
+    [p for p in _sources() if _within(_module_name(p), ("pilworld.world_model",))],
+    ids=lambda p: str(p.relative_to(ROOT)),
+)
+def test_the_world_model_imports_nothing_from_the_judges(path: Path) -> None:
+    """The imagined branch and the judge that scores it must not share perception and fail together unseen."""
+    bad = sorted(n for n in _project_imports(path) if _within(n, ("pilworld.judges",)))
+    assert not bad, f"{_module_name(path)} imports {bad}: shared image code belongs in pilworld.perception"
+
+
 def test_legacy_task_readers_exist() -> None:
     """An exception that no longer names a module must go (so the list only shrinks)."""
     modules = {_module_name(p) for p in _sources()}
@@ -150,6 +161,7 @@ ORDER: tuple[str, ...] = (
     "pilworld.envs",
     "pilworld.world_model",
     "pilworld.judges",
+    "pilworld.reference",
     "pilworld.collection",
     "pilworld.starts",
     "pilworld.policies",

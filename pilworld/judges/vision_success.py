@@ -4,7 +4,7 @@ The paper needed people to judge success on both branches; this judge automates 
 rig's three tasks and is validated against the simulator's privileged checker on the real branch
 (``pilworld.bench.judges``; docs/judges.md). It reads only what an episode stores — the camera frames,
 the measured (real) or commanded (imagined) joint state, the instruction and the subtask index — plus
-the rig geometry and fixed task knowledge (:mod:`pilworld.judges.vision_tasks`). No object pose, no
+the rig geometry and fixed task knowledge (:mod:`pilworld.reference.paper_tasks`). No object pose, no
 layout seed: it works on an :class:`~pilworld.data.episode.Episode` alone.
 
 How it decides, mirroring what the checker requires (in place, released, stable):
@@ -40,11 +40,11 @@ from calib.camera_model import CameraModel
 from pilworld.data.episode import Episode
 from pilworld.data.outcomes import JudgeKind
 from pilworld.judges.base import JudgeContext, Verdict
-from pilworld.judges.vision_tasks import SubtaskGoal, TaskSpec, task_spec
 from pilworld.perception.colour import largest_blob
 from pilworld.perception.silhouette import BoxShape, Fit, Pose2D
 from pilworld.perception.silhouette import fit_pose as _fit_pose
 from pilworld.perception.views import IN_HAND_PX, IN_HAND_SHARE, Labels, frame_cameras, label_image, object_view
+from pilworld.reference.paper_tasks import SubtaskGoal, TaskSpec, task_spec
 from pilworld.types import ARM_LAYOUT, HEAD_VIEW
 
 HOLD_MAX = 0.85  # grip below this: the fingers are closed or resting on an object (measured or commanded)

@@ -7,7 +7,7 @@ objects themselves:
 
 * **Where they are** (:func:`estimate_scene`): from the rollout's start frames, each object of the
   task (colour and shape from the same task knowledge the judges and the scripted policies use,
-  :mod:`pilworld.judges.vision_tasks`) is found by colour in the head view and placed by
+  :mod:`pilworld.reference.paper_tasks`) is found by colour in the head view and placed by
   render-and-compare (:func:`pilworld.perception.silhouette.fit_pose`) in every view that sees it, on the
   table or on top of the object it stands on (the support whose position agrees with it).
 * **How they move** (:meth:`ObjectScene.advance`): an object moves only while a gripper holds it.
@@ -34,10 +34,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pilworld.config.rig import RigConfig
-from pilworld.judges.vision_tasks import TaskSpec, task_spec
 from pilworld.perception.colour import largest_blob
 from pilworld.perception.silhouette import BowlShape, BoxShape, Pose2D, Shape, fit_pose
 from pilworld.perception.views import IN_HAND_PX, IN_HAND_SHARE, frame_cameras, label_image, object_view
+from pilworld.reference.paper_tasks import TaskSpec, task_spec
 from pilworld.types import ARM_LAYOUT, HEAD_VIEW
 from pilworld.world_model.composite.layers import HOLD_MAX
 

@@ -15,8 +15,8 @@ from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
 from pilworld.judges.base import Judge, JudgeContext
 from pilworld.judges.vision_success import VisionSuccessJudge
-from pilworld.judges.vision_tasks import TASK_SPECS
 from pilworld.perception.views import label_image
+from pilworld.reference.paper_tasks import TASK_SPECS
 from pilworld.types import ChunkSpec
 from tests.conftest import SIM_RIG
 

@@ -12,7 +12,7 @@ import torch
 from pilworld.config.rig import RigConfig
 from pilworld.control_video.gamma import ControlVideo
 from pilworld.envs import ImaginedEnv
-from pilworld.judges.vision_tasks import task_spec
+from pilworld.reference.paper_tasks import task_spec
 from pilworld.types import ARM_LAYOUT, ChunkSpec, Observation, Start, Subtask
 from pilworld.world_model.base import PredictRequest
 from pilworld.world_model.composite.checkpoint import is_composite, load_composite, save_composite

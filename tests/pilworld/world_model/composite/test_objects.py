@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from pilworld.config.rig import RigConfig
-from pilworld.judges.vision_tasks import task_spec
 from pilworld.perception.colour import segment
 from pilworld.perception.silhouette import BowlShape, BoxShape, Pose2D
+from pilworld.reference.paper_tasks import task_spec
 from pilworld.types import ARM_LAYOUT, HEAD_VIEW
 from pilworld.world_model.composite.object_draw import draw_objects, erase_elsewhere
 from pilworld.world_model.composite.objects import (
