@@ -48,6 +48,14 @@ def register(sub: Any) -> None:
     p.add_argument("--workers", type=int, default=1, help="worker processes on this machine (default 1)")
     p.add_argument("--ray", default=None, metavar="ADDRESS", help="run on a Ray cluster (HOST:PORT, auto, or local)")
     p.add_argument("--no-judge", action="store_true", help="store the episodes without judging them")
+    p.add_argument(
+        "--judge",
+        type=Path,
+        default=None,
+        metavar="JUDGE",
+        help="a learned judge folder (pilworld judge train): it judges success, the task-free detector "
+        "hallucinations, and what it abstains on is queued for people (default: the paper tasks' hand-written judge)",
+    )
     p.add_argument("--judge-workers", type=int, default=None, help="processes judging the episodes (default: CPUs)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.set_defaults(handler=_imagine)
@@ -80,6 +88,12 @@ def _imagine(args: argparse.Namespace) -> int:
     check_count(args.count, "--count", STARTS)
     check_count(args.workers, "--workers", WORKERS)
     check_count(args.judge_workers, "--judge-workers", WORKERS)
+    if args.judge is not None:
+        if args.no_judge:
+            raise ValueError("--judge and --no-judge: choose one")
+        from pilworld.judges.learned.folder import load_judge
+
+        load_judge(args.judge)  # a missing or damaged judge folder is refused before anything runs
     checkpoints = [c.strip() for c in args.checkpoints.split(",")]
     if not all(checkpoints):
         raise ValueError(f"--checkpoints: expected checkpoint names separated by commas, got {args.checkpoints!r}")
@@ -110,7 +124,10 @@ def _imagine(args: argparse.Namespace) -> int:
         backend = ray_backend(args.ray)
     summary = imagine_run(cfg, workers=args.workers, backend=backend, progress=not args.json)
     if not args.no_judge:
-        summary["judged"] = judge_run(args.out, workers=args.judge_workers, progress=not args.json)
+        summary["judged"] = judge_run(args.out, workers=args.judge_workers, progress=not args.json, learned=args.judge)
+    if args.judge is not None and summary.get("judged", {}).get("abstained"):
+        print(f"  {len(summary['judged']['abstained'])} episodes left to people: "
+              f"pilworld annotate serve {args.out} --judges N --abstained")  # fmt: skip
     print(
         f"imagine: {summary['branches_planned']} branches ({summary['scenes']} starts × {len(cfg.checkpoints)} "
         f"checkpoints) in {summary['out']}; {summary['branches_run']} run in {summary['seconds']} s"
@@ -122,28 +139,43 @@ def _imagine(args: argparse.Namespace) -> int:
     return 0
 
 
-def judge_run(root: Path, *, workers: int | None, progress: bool) -> dict[str, Any]:
-    """The image-only judge on every episode not judged yet; the imagined success rate per checkpoint."""
+def judge_run(root: Path, *, workers: int | None, progress: bool, learned: Path | None = None) -> dict[str, Any]:
+    """The automatic judges on every episode not judged yet; the imagined success rate per checkpoint.
+
+    ``learned``: a learned judge folder, which judges success (abstaining where unsure) with the task-free
+    hallucination detector (:mod:`pilworld.judges.learned.apply`); without one, the paper tasks'
+    hand-written judge (success and hallucinations)."""
     from pilworld.config.rig import RigConfig
     from pilworld.data.outcomes import read_outcomes
     from pilworld.data.reader import EpisodeStore
     from pilworld.imagine.runner import CONFIG_FILE
-    from pilworld.judges.base import judge_dataset, unjudged_episodes
+    from pilworld.judges.base import Judge, judge_dataset, unjudged_episodes
+    from pilworld.judges.learned.apply import LEARNED_ID, apply_judge
+    from pilworld.judges.learned.judge import LearnedSuccessJudge
     from pilworld.judges.vision import VisionJudge
 
     if not (root / "meta" / "info.json").is_file():
         return {"episodes": 0, "success_rate": {}}
-    judge = VisionJudge()
     rig = RigConfig.load(json.loads((root / CONFIG_FILE).read_text())["rig"])
-    todo = unjudged_episodes(root, judge.judge_id)
-    judge_dataset(root, [judge], rig, episodes=todo, progress=progress, workers=workers)
+    abstained: list[int] | None = None
+    if learned is None:
+        judge: Judge = VisionJudge()
+        success_id = judge.judge_id
+        todo = unjudged_episodes(root, judge.judge_id)
+        judge_dataset(root, [judge], rig, episodes=todo, progress=progress, workers=workers)
+    else:
+        applied = apply_judge(LearnedSuccessJudge(learned), root, rig, workers=workers, progress=progress)
+        todo, abstained, success_id = list(range(applied.episodes)), applied.abstained, LEARNED_ID
     store = EpisodeStore(root)
     ckpt = {int(r["episode_index"]): str(r.get("checkpoint") or "") for r in store.episodes}
     per: dict[str, list[float]] = {}
     for o in read_outcomes(root):
-        if o.judge_id == judge.judge_id:
+        if o.judge_id == success_id:
             per.setdefault(ckpt[o.episode_index], []).append(float(o.success))
-    return {"episodes": len(todo), "success_rate": {c: sum(v) / len(v) for c, v in sorted(per.items())}}
+    out: dict[str, Any] = {"episodes": len(todo), "success_rate": {c: sum(v) / len(v) for c, v in sorted(per.items())}}
+    if abstained is not None:
+        out["abstained"] = abstained
+    return out
 
 
 MIN_HALF_WIDTH = 1e-4

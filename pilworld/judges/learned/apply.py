@@ -2,9 +2,10 @@
 
 ``pilworld judge apply JUDGE RUN_DIR`` (docs/judges.md, "On a real rig") judges both branches of every
 pair with one judge folder and records its verdicts as judge ``learned`` in the run's outcomes, where
-the metrics read them like any judge's. Where it abstains it records nothing; those episodes are listed
-in ``RUN_DIR/judges/learned.json`` with the judge's name, digest and validation figures, and
-``pilworld annotate serve RUN_DIR --abstained`` queues exactly them for people.
+the metrics read them like any judge's; each row also carries the task-free hallucination detector's first
+frame (:class:`LearnedVisionJudge`), so SR and HFR both come from it. Where it abstains it records
+nothing; those episodes are listed in ``RUN_DIR/judges/learned.json`` with the judge's name, digest and
+validation figures, and ``pilworld annotate serve RUN_DIR --abstained`` queues exactly them for people.
 
 Applying is resumable (a pass stopped half-way keeps what it recorded and judges the rest), and
 applying *another* judge folder to the same run first withdraws the previous judge's verdicts, so the
@@ -20,16 +21,46 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.config.rig import RigConfig
-from pilworld.data.outcomes import read_outcomes, replace_judge_outcomes
+from pilworld.data.episode import Episode
+from pilworld.data.outcomes import JudgeKind, read_outcomes, replace_judge_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.io.atomic import write_json
-from pilworld.judges.base import judge_dataset
+from pilworld.judges.base import JudgeContext, Verdict, judge_dataset
+from pilworld.judges.hallucination import HallucinationDetector
 from pilworld.judges.learned.folder import WEIGHTS_FILE, JudgeFolder
 from pilworld.judges.learned.judge import LearnedSuccessJudge
 
 LEARNED_ID = "learned"  # the judge_id of an applied learned judge's verdicts
 RECORD = Path("judges") / f"{LEARNED_ID}.json"  # in the run folder: which judge, and what it left to people
 RECORD_FORMAT = "pilworld-applied-judge/1"
+
+
+class LearnedVisionJudge:
+    """Judge ``learned``: the learned success verdict (None where it abstains) and the task-free detector's
+    first hallucination frame in one verdict, so both land in one outcomes row (like the reference judge's)."""
+
+    def __init__(self, success: LearnedSuccessJudge, hallucination: HallucinationDetector | None = None) -> None:
+        self.success = success
+        self.hallucination = hallucination or HallucinationDetector()
+
+    @property
+    def judge_id(self) -> str:
+        return LEARNED_ID
+
+    @property
+    def kind(self) -> JudgeKind:
+        return "vision"
+
+    def judge(self, episode: Episode, context: JudgeContext) -> Verdict:
+        s = self.success.judge(episode, context)
+        if s.success is None:  # abstained: nothing is recorded, the episode goes to people whole
+            return s
+        h = self.hallucination.judge(episode, context)
+        return Verdict(
+            success=s.success,
+            first_hallucination_frame=h.first_hallucination_frame,
+            reason=f"success: {s.reason}; hallucination: {h.reason}",
+        )
 
 
 @dataclass(frozen=True)
@@ -101,7 +132,7 @@ def apply_judge(
     write_json(root / RECORD, record)
     have = {o.episode_index for o in read_outcomes(root) if o.judge_id == LEARNED_ID}
     todo = [i for i in range(store.num_episodes) if i not in have]  # abstentions are judged again: cheap, the same
-    judge_dataset(root, [judge], rig, episodes=todo, progress=progress, workers=workers)
+    judge_dataset(root, [LearnedVisionJudge(judge)], rig, episodes=todo, progress=progress, workers=workers)
     have = {o.episode_index for o in read_outcomes(root) if o.judge_id == LEARNED_ID}
     abstained = [i for i in range(store.num_episodes) if i not in have]
     write_json(root / RECORD, record | {"complete": True, "judged": len(have), "abstained": abstained})

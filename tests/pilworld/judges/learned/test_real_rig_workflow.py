@@ -88,6 +88,33 @@ def test_operator_verdicts_train_a_judge_that_judges_the_run_and_queues_the_rest
     assert [o.episode_index for o in humans] == [abstained[0]]
 
 
+def test_imagined_rollouts_thereafter_are_judged_by_the_learned_judge(
+    pilot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``imagine --judge``: success by the learned judge (abstentions listed), hallucinations by the task-free
+    detector in the same rows; the paper tasks' hand-written judge, which refuses this task, is not asked."""
+    judge = tmp_path / "judge"
+    assert main(["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
+                 "--folds", "2", "--steps", "8", "--abstain-budget", "0.5"]) == 0  # fmt: skip
+    out = tmp_path / "imagined"
+    argv = ["imagine", "--starts", str(pilot), "--task", str(TASK), "--checkpoints", "scripted_step_10k",
+            "--out", str(out), "--judge", str(judge), "--judge-workers", "1", "--json"]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    rows = read_outcomes(out)
+    episodes = summary["branches_planned"]
+    assert episodes == SUBTASKS
+    learned = {o.episode_index for o in rows if o.judge_id == LEARNED_ID}
+    assert sorted(learned | set(summary["judged"]["abstained"])) == list(range(episodes))
+    assert learned and {o.judge_id for o in rows} == {LEARNED_ID}  # not the hand-written "vision"
+    record = json.loads((out / RECORD).read_text())
+    assert record["complete"] and record["abstained"] == summary["judged"]["abstained"]
+    bad = tmp_path / "not_a_judge"
+    bad.mkdir()
+    assert main([*argv[:-5], "--out", str(tmp_path / "x"), "--judge", str(bad)]) == 2
+    assert "judge.json" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
 def test_apply_resumes_and_another_judge_replaces_the_verdicts(
     pilot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
