@@ -18,8 +18,8 @@ Each unexplained change must still be there one frame later; the reported frame 
 showed. It needs the state (the measured joints in the real branch, the commanded stride-aligned
 actions in the imagined one) and the rig's head camera and kinematics. The objects' colours are found in
 the episode itself (:func:`pilworld.perception.objects.discover_colours_over`: saturated hues forming
-compact blobs, away from the predicted arms, in frames spread over the episode since an arm often hides
-the objects at a subtask's start), so no task knowledge is read; a scene without coloured objects gets
+compact blobs, away from the predicted arms, in every frame since an arm often hides an object for all
+but a few frames), so no task knowledge is read; a scene without coloured objects gets
 only the arm and view checks. Measured detection and false-positive rates: ``pilworld bench hallucination``
 (``pilworld/bench/hallucination.py``) and docs/judges.md.
 """
@@ -74,9 +74,9 @@ def head_scene(
             f"{cam.width}x{cam.height}"
         )
     arms = predict_arms(rig, episode.state, shape)
-    # The objects' colours, found in frames spread over the episode away from the predicted arms (an arm
-    # often hides objects at a subtask's start): no task knowledge.
-    classes = discover_colours_over(images, exclude=np.stack([dilate(a, 2) for a in arms.whole]), samples=20)
+    # The objects' colours, found in every frame away from the predicted arms (an arm often hides an object
+    # for all but a few frames; one missed colour is one object never tracked): no task knowledge.
+    classes = discover_colours_over(images, exclude=np.stack([dilate(a, 2) for a in arms.whole]), samples=len(images))
     labels = object_labels(images, classes, (thresholds or Thresholds()).faded_saturation)
     # The table's colour from the start frame (real in both branches), away from arms and objects.
     table = learn_table(images[0], dilate(arms.whole[0], 3) | dilate(labels[0] > 0, 2))
