@@ -167,7 +167,14 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     roots = _roots(args.data)
     judge = LearnedSuccessJudge(args.judge)
-    result = evaluate(judge, roots, args.labels, degrade=DEGRADATIONS.get(args.degrade), progress=sys.stderr.isatty())
+    result = evaluate(
+        judge,
+        roots,
+        args.labels,
+        degrade=DEGRADATIONS.get(args.degrade),
+        progress=sys.stderr.isatty(),
+        rig=_rig(args.rig),  # a release-crop judge reads the rig's kinematics and head camera
+    )
     result = {"judge": str(args.judge), "labels": args.labels, "degrade": args.degrade or None, **result}
     agree = result["agreement"]
     print(

@@ -135,6 +135,19 @@ def test_apply_resumes_and_another_judge_replaces_the_verdicts(
     assert ("withdrew" in out) == bool(first)  # the first judge's verdicts went, if it gave any
 
 
+def test_a_release_crop_judge_is_evaluated_with_the_rig(
+    pilot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``judge evaluate --rig`` hands the rig to a judge that reads where a gripper let go (kinematics, head camera)."""
+    judge = tmp_path / "crop"
+    assert main(["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
+                 "--folds", "2", "--steps", "4", "--release-crop", "16"]) == 0  # fmt: skip
+    capsys.readouterr()
+    argv = ["judge", "evaluate", str(judge), "--data", str(pilot), "--labels", "operator", "--rig", FAKE, "--json"]
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["episodes"] == SUBTASKS
+
+
 def test_abstained_needs_an_applied_judge(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     run = tmp_path / "run"
     run.mkdir()
