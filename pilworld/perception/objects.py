@@ -40,41 +40,7 @@ def discover_colours(
     ``exclude`` (``(H, W)`` bool) masks pixels that are known not to be objects (the arms);
     ``min_pixels`` defaults to :data:`MIN_PIXELS` scaled from a 128 × 128 image.
     """
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError(f"image: expected uint8 (H, W, 3), got {img.dtype} {img.shape}")
-    h, w = img.shape[:2]
-    if exclude is not None and exclude.shape != (h, w):
-        raise ValueError(f"exclude: expected a ({h}, {w}) mask, got {exclude.shape}")
-    least = min_pixels if min_pixels is not None else max(3, round(MIN_PIXELS * h * w / 128**2))
-    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV)
-    sat = (hsv[..., 1] >= np.ceil(MIN_SATURATION * 255)) & (hsv[..., 2] >= np.ceil(MIN_VALUE * 255))
-    if exclude is not None:
-        sat &= ~exclude
-    hue = hsv[..., 0].astype(np.int64)  # OpenCV: 0..179, 2° per step
-    counts = np.bincount(hue[sat], minlength=180)[:180].astype(np.float64)
-    kernel = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
-    smooth = np.convolve(np.concatenate([counts[-2:], counts, counts[:2]]), kernel, mode="valid")
-    sep = MIN_SEPARATION_DEG / 2.0  # in OpenCV hue steps
-    peaks = [
-        i for i in range(180) if smooth[i] > 0 and smooth[i] >= smooth[i - 1] and smooth[i] > smooth[(i + 1) % 180]
-    ]
-    kept: list[int] = []
-    for p in sorted(peaks, key=lambda i: -smooth[i]):
-        if all(_hue_steps(p, q) >= sep for q in kept):
-            kept.append(p)
-    found: list[tuple[int, int]] = []  # (pixels in the largest blob, hue step)
-    for p in kept:
-        near = sat & (np.minimum(np.abs(hue - p), 180 - np.abs(hue - p)) <= sep / 2.0)
-        total = int(near.sum())
-        if total < least:
-            continue
-        n, _, stats, _ = cv2.connectedComponentsWithStats(near.astype(np.uint8), connectivity=8)
-        largest = int(stats[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
-        if largest >= least and largest >= MIN_COMPACT * total:
-            found.append((largest, p))
-    found.sort(reverse=True)
-    return [_colour(p) for _, p in found]
+    return [_colour(p) for p in _object_hues(image, exclude, min_pixels)]
 
 
 def discover_colours_over(
@@ -91,15 +57,56 @@ def discover_colours_over(
         raise ValueError(f"frames: expected (T, H, W, 3) with T >= 1, got {frames.shape}")
     T = len(frames)
     picks = sorted({int(t) for t in np.linspace(0, T - 1, min(max(samples, 1), T)).round()})
-    found: list[ColourClass] = []
     steps: list[int] = []
     for t in picks:
-        for c in discover_colours(frames[t], None if exclude is None else exclude[t]):
-            step = int(c.name.split("_")[1]) // 2
-            if all(_hue_steps(step, q) >= MIN_SEPARATION_DEG / 2.0 for q in steps):
-                steps.append(step)
-                found.append(c)
-    return found
+        for p in _object_hues(frames[t], None if exclude is None else exclude[t], None):
+            if _distinct(p, steps):
+                steps.append(p)
+    return [_colour(p) for p in steps]
+
+
+def _object_hues(image: NDArray[np.uint8], exclude: NDArray[np.bool_] | None, min_pixels: int | None) -> list[int]:
+    """:func:`discover_colours`' hues as OpenCV hue steps (0..179, 2° each), most pixels first."""
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"image: expected uint8 (H, W, 3), got {img.dtype} {img.shape}")
+    h, w = img.shape[:2]
+    if exclude is not None and exclude.shape != (h, w):
+        raise ValueError(f"exclude: expected a ({h}, {w}) mask, got {exclude.shape}")
+    least = min_pixels if min_pixels is not None else max(3, round(MIN_PIXELS * h * w / 128**2))
+    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV)
+    sat = (hsv[..., 1] >= np.ceil(MIN_SATURATION * 255)) & (hsv[..., 2] >= np.ceil(MIN_VALUE * 255))
+    if exclude is not None:
+        sat &= ~exclude
+    hue = hsv[..., 0].astype(np.int64)  # OpenCV: 0..179, 2° per step
+    counts = np.bincount(hue[sat], minlength=180)[:180].astype(np.float64)
+    kernel = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
+    smooth = np.convolve(np.concatenate([counts[-2:], counts, counts[:2]]), kernel, mode="valid")
+    peaks = [
+        i for i in range(180) if smooth[i] > 0 and smooth[i] >= smooth[i - 1] and smooth[i] > smooth[(i + 1) % 180]
+    ]
+    kept: list[int] = []
+    for p in sorted(peaks, key=lambda i: -smooth[i]):
+        if _distinct(p, kept):
+            kept.append(p)
+    half = MIN_SEPARATION_DEG / 4.0  # a colour's pixels: within half the separation of its peak (hue steps)
+    found: list[tuple[int, int]] = []  # (pixels in the largest blob, hue step)
+    for p in kept:
+        near = sat & (np.minimum(np.abs(hue - p), 180 - np.abs(hue - p)) <= half)
+        total = int(near.sum())
+        if total < least:
+            continue
+        n, _, stats, _ = cv2.connectedComponentsWithStats(near.astype(np.uint8), connectivity=8)
+        largest = int(stats[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
+        if largest >= least and largest >= MIN_COMPACT * total:
+            found.append((largest, p))
+    found.sort(reverse=True)
+    return [p for _, p in found]
+
+
+def _distinct(step: int, kept: list[int]) -> bool:
+    """Whether hue ``step`` is at least :data:`MIN_SEPARATION_DEG` from every hue in ``kept`` (OpenCV steps)."""
+    return all(_hue_steps(step, q) >= MIN_SEPARATION_DEG / 2.0 for q in kept)
 
 
 def _hue_steps(a: int, b: int) -> float:
