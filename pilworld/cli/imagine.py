@@ -8,7 +8,10 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pilworld.judges.learned.folder import JudgeFolder
 
 
 def register(sub: Any) -> None:
@@ -88,12 +91,13 @@ def _imagine(args: argparse.Namespace) -> int:
     check_count(args.count, "--count", STARTS)
     check_count(args.workers, "--workers", WORKERS)
     check_count(args.judge_workers, "--judge-workers", WORKERS)
+    learned = None
     if args.judge is not None:
         if args.no_judge:
             raise ValueError("--judge and --no-judge: choose one")
         from pilworld.judges.learned.folder import load_judge
 
-        load_judge(args.judge)  # a missing or damaged judge folder is refused before anything runs
+        learned = load_judge(args.judge)  # a missing or damaged judge folder is refused before anything runs
     checkpoints = [c.strip() for c in args.checkpoints.split(",")]
     if not all(checkpoints):
         raise ValueError(f"--checkpoints: expected checkpoint names separated by commas, got {args.checkpoints!r}")
@@ -124,7 +128,7 @@ def _imagine(args: argparse.Namespace) -> int:
         backend = ray_backend(args.ray)
     summary = imagine_run(cfg, workers=args.workers, backend=backend, progress=not args.json)
     if not args.no_judge:
-        summary["judged"] = judge_run(args.out, workers=args.judge_workers, progress=not args.json, learned=args.judge)
+        summary["judged"] = judge_run(args.out, workers=args.judge_workers, progress=not args.json, learned=learned)
     if args.judge is not None and summary.get("judged", {}).get("abstained"):
         print(f"  {len(summary['judged']['abstained'])} episodes left to people: "
               f"pilworld annotate serve {args.out} --judges N --abstained")  # fmt: skip
@@ -139,12 +143,14 @@ def _imagine(args: argparse.Namespace) -> int:
     return 0
 
 
-def judge_run(root: Path, *, workers: int | None, progress: bool, learned: Path | None = None) -> dict[str, Any]:
+def judge_run(
+    root: Path, *, workers: int | None, progress: bool, learned: Path | JudgeFolder | None = None
+) -> dict[str, Any]:
     """The automatic judges on every episode not judged yet; the imagined success rate per checkpoint.
 
-    ``learned``: a learned judge folder, which judges success (abstaining where unsure) with the task-free
-    hallucination detector (:mod:`pilworld.judges.learned.apply`); without one, the paper tasks'
-    hand-written judge (success and hallucinations)."""
+    ``learned``: a learned judge folder (its path, or as loaded), which judges success (abstaining where
+    unsure) with the task-free hallucination detector (:mod:`pilworld.judges.learned.apply`); without one,
+    the paper tasks' hand-written judge (success and hallucinations)."""
     from pilworld.config.rig import RigConfig
     from pilworld.data.outcomes import read_outcomes
     from pilworld.data.reader import EpisodeStore
