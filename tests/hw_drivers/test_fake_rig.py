@@ -123,7 +123,22 @@ def test_a_mocked_hardware_subtask_ends_as_on_the_simulator() -> None:
 
 @pytest.mark.slow
 def test_a_mocked_hardware_subtask_of_a_stacking_task_ends_as_on_the_simulator() -> None:
-    _compare("stack_bowls", 13, 0)
+    """stack_bowls 13/0, SimRobot's chunks replayed through the drivers: the bowls nest as on SimRobot.
+
+    Replayed, for the reason the tower test below gives: in closed loop the policy sees the head camera's JPEG
+    frames, whose age grows with the machine's load; in the CI run of c1189c0 (every core busy) its plan on
+    this subtask missed the medium bowl, which then stayed where it was (288 mm from where SimRobot put it),
+    while it passed on this machine unloaded. The closed-loop comparison stays on sort_cubes, whose outcome
+    does not hang on a frame's age.
+    """
+    sub = _subtask("stack_bowls", 13, 0)
+    spec = ChunkSpec(rounds=5)
+    success, sim_poses, chunks = _on_sim(sub, spec)
+    verdicts, poses = _replayed_on_fake_rig(sub, spec, chunks)
+    assert verdicts["sim_checker"] == success, f"fake rig {verdicts}, SimRobot {success}"
+    # 5 mm, not the tower's 1 mm: with every core busy the fake's 500 Hz servo loops slip and the bowls, which
+    # slide on each other as they nest, ended up to 2 mm from SimRobot's (1 of 4 loaded runs here).
+    _assert_objects_within(poses, sim_poses, 0.005)
 
 
 @pytest.mark.slow
