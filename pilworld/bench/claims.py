@@ -53,10 +53,11 @@ class Verdicts:
     @classmethod
     def load(cls, run: str | Path) -> Verdicts:
         from pilworld.data.pairs import load_pairs
+        from pilworld.metrics.selection import read_selection
         from pilworld.metrics.success import score_pairs
 
         out = {}
-        for s in score_pairs(load_pairs(run)):
+        for s in score_pairs(load_pairs(run), read_selection(run)):
             if s.real is None or s.imag is None:
                 continue  # no judge gave verdicts on both branches: not counted, as in the metrics
             hfr = math.nan if s.hfr is None else float(s.hfr)

@@ -1,4 +1,4 @@
-"""``pilworld judge train|evaluate|show``: a success judge learned from labelled episodes (docs/judges.md).
+"""``pilworld judge train|evaluate|apply|select|show``: a success judge learned from labelled episodes (docs/judges.md).
 
 * ``train --data DIR[,DIR…] --out JUDGE [--labels sim_checker|operator|human]`` — a judge from the labelled
   episodes of one or more datasets (any task: the instruction and subtask index are inputs, nothing else
@@ -9,6 +9,8 @@
 * ``apply JUDGE RUN_DIR`` — verdicts on every episode of a run (both branches) as judge ``learned``, the
   episodes it abstains on listed for people (``pilworld annotate serve RUN_DIR --abstained``), then the
   run's metrics.json and report.html again.
+* ``select RUN_DIR JUDGES|all`` — which judges' verdicts the run's SR and HFR come from (``apply`` selects
+  ``learned`` unless ``--no-select``), recorded in the run folder.
 * ``show JUDGE`` — what a judge folder holds: its inputs, data, threshold and validation.
 """
 
@@ -92,8 +94,28 @@ def register(sub: Any) -> None:
     a.add_argument("--rig", type=Path, default=None, help=RIG_HELP)
     a.add_argument("--workers", type=int, default=1, help=bounded("judging processes (default 1)", WORKERS))
     a.add_argument("--no-report", action="store_true", help="do not write metrics.json and report.html")
+    a.add_argument(
+        "--no-select",
+        action="store_true",
+        help="keep the run's judge selection (default: SR and HFR come from judge 'learned' from now on)",
+    )
     a.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
     a.set_defaults(handler=_apply)
+
+    sel = cmds.add_parser(
+        "select",
+        help="which judges' verdicts a run's SR and HFR come from",
+        description="Record in RUN_DIR/judges/selection.json which judges count in SR and HFR (the others' rates "
+        "stay in metrics.json judges.per_judge, on the same pairs), then write metrics.json and report.html again. "
+        "'all': every judge with verdicts on both branches of a pair (the paper's formula). Without JUDGES: print "
+        "the run's selection and the judges it has verdicts from.",
+    )
+    sel.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a paired run")
+    sel.add_argument("judges", nargs="?", default=None, metavar="JUDGES", help="comma-separated judge ids, or 'all'")
+    sel.add_argument("--rig", type=Path, default=None, help=RIG_HELP)
+    sel.add_argument("--no-report", action="store_true", help="do not write metrics.json and report.html")
+    sel.add_argument("--json", action="store_true", help="print the result as one JSON object on the last line")
+    sel.set_defaults(handler=_select)
 
     s = cmds.add_parser("show", help="what a judge folder holds")
     s.add_argument("judge", type=Path, metavar="JUDGE", help="judge folder")
@@ -216,8 +238,44 @@ def _apply(args: argparse.Namespace) -> int:
         "abstained": result.abstained,
         "record": str(result.record),
     }
+    if not args.no_select:
+        from pilworld.judges.learned.apply import LEARNED_ID
+        from pilworld.metrics.selection import SELECTION_FILE, write_selection
+
+        write_selection(args.run_dir, [LEARNED_ID], "pilworld judge apply")
+        print(f"SR and HFR of {args.run_dir} now come from judge {LEARNED_ID!r} ({args.run_dir / SELECTION_FILE}; "
+              "pilworld judge select RUN_DIR all: every judge again)")  # fmt: skip
+    out["selected"] = not args.no_select
     if not args.no_report:
         out |= _rewrite_results(args.run_dir, rig)
+    if args.json:
+        print(json.dumps(out))
+    return 0
+
+
+def _select(args: argparse.Namespace) -> int:
+    from pilworld.data.outcomes import read_outcomes
+    from pilworld.metrics.selection import SELECTION_FILE, parse_judge_ids, read_selection, write_selection
+
+    if not (args.run_dir / "meta" / "info.json").is_file():
+        raise ValueError(f"RUN_DIR: {args.run_dir}: not a run folder (no meta/info.json)")
+    have = sorted({o.judge_id for o in read_outcomes(args.run_dir)})
+    selection = read_selection(args.run_dir)
+    if args.judges is not None:
+        ids = parse_judge_ids(args.judges)
+        unknown = [j for j in ids or () if j not in have]
+        if unknown:
+            raise ValueError(
+                f"JUDGES: {', '.join(unknown)}: no verdicts of that judge in {args.run_dir} "
+                f"(it has verdicts from: {', '.join(have) or 'no judge'})"
+            )
+        selection = write_selection(args.run_dir, ids, "pilworld judge select")
+    chosen = "every judge with verdicts on both branches" if selection.judges is None else ", ".join(selection.judges)
+    print(f"{args.run_dir}: SR and HFR come from {chosen} ({args.run_dir / SELECTION_FILE}, set by "
+          f"{selection.set_by}); verdicts from: {', '.join(have) or 'no judge'}")  # fmt: skip
+    out: dict[str, Any] = {"run_dir": str(args.run_dir), "selection": selection.as_json(), "judges_with_verdicts": have}
+    if args.judges is not None and not args.no_report:
+        out |= _rewrite_results(args.run_dir, _rig(args.rig))
     if args.json:
         print(json.dumps(out))
     return 0
@@ -235,9 +293,13 @@ def _rewrite_results(run_dir: Path, rig: RigConfig) -> dict[str, Any]:
         return {"metrics_json": None, "report_html": None}
     metrics = write_metrics(run_dir)
     report = build_report(run_dir, rig=rig)
-    mine = metrics["judges"]["per_judge"].get("learned", {})
-    print(f"metrics: {run_dir / METRICS_FILE} (learned judge: SR_real {_pct(mine.get('sr_real'))}, "
-          f"SR_imag {_pct(mine.get('sr_imag'))} over {mine.get('pairs_both', 0)} pairs); report: {report}")  # fmt: skip
+    print(f"metrics: {run_dir / METRICS_FILE}; report: {report}")
+    for jid, mine in metrics["judges"]["per_judge"].items():
+        if mine.get("kind") == "sim_state":
+            continue
+        counts = " (counts)" if jid in metrics["judges"]["success"] else ""
+        print(f"  judge {jid}: SR_real {_pct(mine.get('sr_real'))}, SR_imag {_pct(mine.get('sr_imag'))} over "
+              f"{mine.get('pairs_both', 0)} pairs{counts}")  # fmt: skip
     return {"metrics_json": str(run_dir / METRICS_FILE), "report_html": str(report)}
 
 

@@ -20,6 +20,7 @@ from pilworld.io.atomic import write_json
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, LEVEL
 from pilworld.metrics.ranking import ranking_metrics
 from pilworld.metrics.ranking_ci import ranking_intervals
+from pilworld.metrics.selection import read_selection
 from pilworld.metrics.single_step import DEFAULT_ACTION_ATOL, single_step_metrics
 from pilworld.metrics.success import PairScore, group_metrics, judge_summary, score_pairs
 
@@ -71,7 +72,8 @@ def compute_run_metrics(
     """
     store = EpisodeStore(root)
     paired = load_pairs(root, store)
-    scores = score_pairs(paired)
+    selection = read_selection(root)
+    scores = score_pairs(paired, selection)
     by_task: dict[str, list[PairScore]] = defaultdict(list)
     by_setting: dict[tuple[str, str], list[PairScore]] = defaultdict(list)
     for s in scores:
@@ -113,7 +115,7 @@ def compute_run_metrics(
         "tasks": tasks,
         "settings": settings,
         "overall": overall,
-        "judges": judge_summary(paired, scores) | {"learned": applied_judge(root)},
+        "judges": judge_summary(paired, scores, selection) | {"learned": applied_judge(root)},
         "bootstrap": {
             "resamples": bootstrap,
             "seed": seed,

@@ -12,6 +12,10 @@ pair is weighted once rather than each verdict. The simulator's privileged check
 ``sim_state``) sees only real episodes, so it never enters SR_real; its rate is reported apart as
 ``sr_real_checker``. Pairs without a common judge are left out of SR and counted.
 
+**Selected judges.** A run may name the judges that count (:mod:`pilworld.metrics.selection`,
+``RUN_DIR/judges/selection.json``): then only their verdicts enter SR and HFR, and every judge's own
+rates stay in ``judges.per_judge``.
+
 **HFR** is over imagined episodes: a pair's value is the mean of t_h / T over every non-``sim_state``
 verdict on its imagined episode (a verdict whose ``first_hallucination_frame`` is null means the
 judge saw none: t_h = T, per the outcomes table), and HFR is the mean over pairs that have one.
@@ -28,6 +32,7 @@ import numpy as np
 from pilworld.data.outcomes import Outcome
 from pilworld.data.pairs import Pair, PairedEpisodes
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, bootstrap_means
+from pilworld.metrics.selection import DEFAULT, JudgeSelection
 
 CHECKER_KIND = "sim_state"  # privileged simulator checkers: real episodes only, reported apart
 
@@ -56,11 +61,14 @@ def _mean(values: Sequence[float]) -> float | None:
     return float(np.mean(values)) if values else None
 
 
-def score_pair(pair: Pair, paired: PairedEpisodes) -> PairScore:
+def score_pair(pair: Pair, paired: PairedEpisodes, selection: JudgeSelection = DEFAULT) -> PairScore:
+    """The pair's values; only the judges ``selection`` allows count in SR and HFR (the checker always apart)."""
     real = {o.judge_id: o for o in paired.outcomes(pair.real)}
     imag = {o.judge_id: o for o in paired.outcomes(pair.imagined)}
-    common = tuple(sorted(set(real) & set(imag)))
-    hallucination: list[Outcome] = [o for o in imag.values() if o.judge_kind != CHECKER_KIND]
+    common = tuple(sorted(j for j in set(real) & set(imag) if selection.allows(j)))
+    hallucination: list[Outcome] = [
+        o for o in imag.values() if o.judge_kind != CHECKER_KIND and selection.allows(o.judge_id)
+    ]
     return PairScore(
         pair=pair,
         real=_mean([float(real[j].success) for j in common]),
@@ -72,8 +80,8 @@ def score_pair(pair: Pair, paired: PairedEpisodes) -> PairScore:
     )
 
 
-def score_pairs(paired: PairedEpisodes) -> list[PairScore]:
-    return [score_pair(p, paired) for p in paired.pairs]
+def score_pairs(paired: PairedEpisodes, selection: JudgeSelection = DEFAULT) -> list[PairScore]:
+    return [score_pair(p, paired, selection) for p in paired.pairs]
 
 
 def _column(scores: Sequence[PairScore], name: str) -> np.ndarray[Any, np.dtype[np.float64]]:
@@ -130,7 +138,9 @@ def group_metrics(
     return out
 
 
-def judge_summary(paired: PairedEpisodes, scores: Sequence[PairScore]) -> dict[str, Any]:
+def judge_summary(
+    paired: PairedEpisodes, scores: Sequence[PairScore], selection: JudgeSelection = DEFAULT
+) -> dict[str, Any]:
     """Which judges were used for what, with counts, per-judge rates and agreement with the checker.
 
     ``per_judge[j]``: its kind; ``pairs_both`` (pairs it judged on both branches, i.e. where it counts
@@ -169,8 +179,11 @@ def judge_summary(paired: PairedEpisodes, scores: Sequence[PairScore]) -> dict[s
         d["episodes_compared_with_checker"] = len(agree)
     used = sorted({j for s in scores for j in s.judges})
     return {
+        "selection": selection.as_json(),
         "success": used,
-        "success_rule": "judges with verdicts on both branches of a pair; the pair's branch score is their mean",
+        "success_rule": (
+            "selected judges with verdicts on both branches of a pair; the pair's branch score is their mean"
+        ),
         "hallucination": sorted({j for s in scores for j in s.hfr_judges}),
         "checker": sorted(j for j, d in per.items() if d["kind"] == CHECKER_KIND),
         "pairs_without_common_judge": sum(1 for s in scores if not s.judges),

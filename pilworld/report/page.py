@@ -12,6 +12,7 @@ from html import escape
 from typing import Any
 
 from pilworld.report.agreement_view import agreement_section
+from pilworld.report.judges_view import judges_section
 from pilworld.report.metrics_view import DASH, fmt_with_ci
 
 CHECK, CROSS = "✓", "✗"
@@ -384,11 +385,13 @@ def render_page(page: PageData, branches: Sequence[str]) -> str:
         "<header>",
         f"<h1>{_e(page.title)}</h1>",
         f'<dl class="summary">{summary}</dl>',
-        '<nav><a href="#metrics">metrics</a><a href="#charts">charts</a><a href="#pairs">pairs</a></nav>',
+        '<nav><a href="#metrics">metrics</a><a href="#judges">judges</a><a href="#charts">charts</a>'
+        '<a href="#pairs">pairs</a></nav>',
         "</header>",
     ]
     body += [f'<p class="note">{_e(n)}</p>' for n in page.notes]
     body.append(_metrics_section(page))
+    body.append(judges_section(page.metrics))  # "" without a judges block
     body.append(agreement_section(page.metrics))  # "" without human verdicts
     body.append(_charts_section(page))
     body.append(
