@@ -52,8 +52,8 @@ class Verdicts:
 
     @classmethod
     def load(cls, run: str | Path) -> Verdicts:
+        from pilworld.data.judge_selection import read_selection
         from pilworld.data.pairs import load_pairs
-        from pilworld.metrics.selection import read_selection
         from pilworld.metrics.success import score_pairs
 
         out = {}

@@ -239,8 +239,8 @@ def _apply(args: argparse.Namespace) -> int:
         "record": str(result.record),
     }
     if not args.no_select:
+        from pilworld.data.judge_selection import SELECTION_FILE, write_selection
         from pilworld.judges.learned.apply import LEARNED_ID
-        from pilworld.metrics.selection import SELECTION_FILE, write_selection
 
         write_selection(args.run_dir, [LEARNED_ID], "pilworld judge apply")
         print(f"SR and HFR of {args.run_dir} now come from judge {LEARNED_ID!r} ({args.run_dir / SELECTION_FILE}; "
@@ -254,8 +254,8 @@ def _apply(args: argparse.Namespace) -> int:
 
 
 def _select(args: argparse.Namespace) -> int:
+    from pilworld.data.judge_selection import SELECTION_FILE, parse_judge_ids, read_selection, write_selection
     from pilworld.data.outcomes import read_outcomes
-    from pilworld.metrics.selection import SELECTION_FILE, parse_judge_ids, read_selection, write_selection
 
     if not (args.run_dir / "meta" / "info.json").is_file():
         raise ValueError(f"RUN_DIR: {args.run_dir}: not a run folder (no meta/info.json)")

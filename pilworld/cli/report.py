@@ -35,6 +35,13 @@ def register(sub: Any) -> None:
         help="attach an imagined-only run (pilworld imagine --out DIR; repeatable): metrics.json and the report "
         "then give each checkpoint's real success rate by PPI++ beside the classical interval",
     )
+    p.add_argument(
+        "--proxy-judge",
+        default=None,
+        metavar="ID",
+        help="with --imagined: the judge whose imagined verdicts PPI++ uses as predictions, remembered for the run "
+        "(default: the run's selected judge, else 'learned' where it judged the run, else 'vision')",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.set_defaults(handler=_report)
 
@@ -48,14 +55,24 @@ def _report(args: argparse.Namespace) -> int:
     if not (args.run_dir / "meta" / "info.json").is_file():
         raise ValueError(f"RUN_DIR: {args.run_dir}: not a run folder (no meta/info.json)")
     check_out_file(args.out or args.run_dir / "report.html", "--out", suffixes=(".html",))  # before the work
+    if args.proxy_judge is not None and not args.imagined:
+        raise ValueError("--proxy-judge: only with --imagined (the PPI++ estimate it is for needs imagined-only runs)")
     if args.imagined:
         from pilworld.metrics import write_metrics
         from pilworld.ppi.outcomes import attach_runs, read_run_outcomes
         from pilworld.ppi.section import check_outcomes
 
         runs = [*[str(r) for r in args.imagined]]
-        check_outcomes(read_run_outcomes(args.run_dir, runs))  # n = 0 for a checkpoint: refused before anything
-        attach_runs(args.run_dir, runs)
+        if args.proxy_judge is not None:
+            from pilworld.data.outcomes import read_outcomes
+
+            have = sorted({o.judge_id for o in read_outcomes(args.run_dir)})
+            if args.proxy_judge not in have:
+                raise ValueError(f"--proxy-judge: {args.proxy_judge!r} has no verdicts in {args.run_dir} "
+                                 f"(it has: {', '.join(have) or 'none'})")  # fmt: skip
+        # n = 0 for a checkpoint (or a proxy judge without verdicts): refused before anything
+        check_outcomes(read_run_outcomes(args.run_dir, runs, proxy=args.proxy_judge))
+        attach_runs(args.run_dir, runs, proxy=args.proxy_judge)
         write_metrics(args.run_dir)
     path = build_report(args.run_dir, args.out, max_pairs=args.max_pairs)
     stats = report_stats(path)

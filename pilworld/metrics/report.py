@@ -14,13 +14,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from pilworld.data.judge_selection import read_selection
 from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
 from pilworld.io.atomic import write_json
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, LEVEL
 from pilworld.metrics.ranking import ranking_metrics
 from pilworld.metrics.ranking_ci import ranking_intervals
-from pilworld.metrics.selection import read_selection
 from pilworld.metrics.single_step import DEFAULT_ACTION_ATOL, single_step_metrics
 from pilworld.metrics.success import PairScore, group_metrics, judge_summary, score_pairs
 

@@ -12,7 +12,7 @@ pair is weighted once rather than each verdict. The simulator's privileged check
 ``sim_state``) sees only real episodes, so it never enters SR_real; its rate is reported apart as
 ``sr_real_checker``. Pairs without a common judge are left out of SR and counted.
 
-**Selected judges.** A run may name the judges that count (:mod:`pilworld.metrics.selection`,
+**Selected judges.** A run may name the judges that count (:mod:`pilworld.data.judge_selection`,
 ``RUN_DIR/judges/selection.json``): then only their verdicts enter SR and HFR, and every judge's own
 rates stay in ``judges.per_judge``.
 
@@ -29,10 +29,10 @@ from typing import Any
 
 import numpy as np
 
+from pilworld.data.judge_selection import DEFAULT, JudgeSelection
 from pilworld.data.outcomes import Outcome
 from pilworld.data.pairs import Pair, PairedEpisodes
 from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, bootstrap_means
-from pilworld.metrics.selection import DEFAULT, JudgeSelection
 
 CHECKER_KIND = "sim_state"  # privileged simulator checkers: real episodes only, reported apart
 

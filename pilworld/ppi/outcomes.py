@@ -4,9 +4,12 @@
   present — the simulator's privileged checker (``sim_checker``), else the operator at the rig
   (``operator``), else the mean of people's labels (kind ``human``), else the proxy judge itself on the
   real frames. ``gold`` names one judge id instead.
-* **f, the imagined outcome** (the "prediction"): the imagined branch's verdict by the ``proxy`` judge,
-  the image-only judge ``vision`` by default. It must be the same judge in the paired run and in the
-  imagined-only runs: a prediction is only as comparable as the rule that makes it.
+* **f, the imagined outcome** (the "prediction"): the imagined branch's verdict by the ``proxy`` judge.
+  By default (:func:`default_proxy`) the judge the run's selection names (:mod:`pilworld.data.judge_selection`),
+  else the learned judge where the run has its verdicts (``learned``, ``pilworld judge apply``), else the
+  paper tasks' hand-written reference (``vision``) on runs judged by nothing else. It must be the same judge
+  in the paired run and in the imagined-only runs (``pilworld imagine --judge`` records ``learned``): a
+  prediction is only as comparable as the rule that makes it.
 
 Imagined-only branches whose pair id is also a pair of the paired run are left out of the unlabelled
 set: they are the same subtask, already counted with its real outcome.
@@ -23,7 +26,8 @@ from pilworld.data.outcomes import Outcome, read_outcomes
 from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
 
-DEFAULT_PROXY = "vision"
+LEARNED_PROXY = "learned"  # pilworld.judges.learned.apply.LEARNED_ID (not imported: ppi stays below the judges)
+REFERENCE_PROXY = "vision"  # the paper tasks' hand-written judge, for runs no learned judge has judged
 GOLD_ORDER = ("sim_checker", "operator")  # then people's labels (kind human), then the proxy judge on real frames
 ATTACHED_FILE = "imagined_runs.json"  # RUN/imagined_runs.json: the imagined-only runs attached to a paired run
 
@@ -72,24 +76,45 @@ def attached_runs(root: Path) -> list[str]:
     return [str(r) for r in runs]
 
 
-def attach_runs(root: Path, runs: list[str]) -> list[str]:
-    """Remember ``runs`` (besides those attached before) so later metrics include them; returns them all."""
+def attach_runs(root: Path, runs: list[str], proxy: str | None = None) -> list[str]:
+    """Remember ``runs`` (besides those attached before) so later metrics include them, and ``proxy`` as the
+    proxy judge when given (kept otherwise); returns every attached run."""
     from pilworld.io.atomic import write_json
 
     for r in runs:
         if not (Path(r) / "imagine_config.json").is_file():
             raise FileNotFoundError(f"--imagined: {r} holds no imagined-only run (imagine_config.json missing)")
+    path = root / ATTACHED_FILE
+    before = json.loads(path.read_text()) if path.is_file() else {}
     every = list(dict.fromkeys([*attached_runs(root), *[str(Path(r).resolve()) for r in runs]]))
-    write_json(root / ATTACHED_FILE, {"imagined_runs": every})
+    proxy = proxy or before.get("proxy_judge")
+    write_json(path, {"imagined_runs": every} | ({"proxy_judge": proxy} if proxy else {}))
     return every
 
 
+def default_proxy(root: str | Path) -> str:
+    """The proxy judge of the run at ``root``: the one ``pilworld report --proxy-judge`` recorded, else the one its
+    judge selection names, else ``learned`` where it has that judge's verdicts, else ``vision``."""
+    from pilworld.data.judge_selection import read_selection
+
+    attached = Path(root) / ATTACHED_FILE
+    if attached.is_file() and json.loads(attached.read_text()).get("proxy_judge"):
+        return str(json.loads(attached.read_text())["proxy_judge"])  # pilworld report --proxy-judge
+    chosen = read_selection(root).judges
+    if chosen is not None and len(chosen) == 1:
+        return chosen[0]
+    if any(o.judge_id == LEARNED_PROXY for o in read_outcomes(Path(root))):
+        return LEARNED_PROXY
+    return REFERENCE_PROXY
+
+
 def read_run_outcomes(
-    root: str | Path, imagined: list[str] | None = None, *, gold: str | None = None, proxy: str = DEFAULT_PROXY
+    root: str | Path, imagined: list[str] | None = None, *, gold: str | None = None, proxy: str | None = None
 ) -> RunOutcomes:
     """y and f of every pair of the paired run at ``root``, and f of every branch of the imagined-only runs
-    (default: those attached to it)."""
+    (default: those attached to it); ``proxy`` None: :func:`default_proxy`."""
     root = Path(root)
+    proxy = default_proxy(root) if proxy is None else proxy
     paired = load_pairs(root)
     by_ckpt: dict[str, CheckpointOutcomes] = defaultdict(CheckpointOutcomes)
     by_setting: dict[tuple[str, str], CheckpointOutcomes] = defaultdict(CheckpointOutcomes)

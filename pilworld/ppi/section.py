@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from pilworld.ppi.estimator import DEFAULT_ALPHA, PPIEstimate, classical_mean, difference, ppi_mean
-from pilworld.ppi.outcomes import DEFAULT_PROXY, CheckpointOutcomes, RunOutcomes, read_run_outcomes
+from pilworld.ppi.outcomes import CheckpointOutcomes, RunOutcomes, read_run_outcomes
 
 NO_IMAGINED = "no imagined-only runs attached (pilworld imagine, then pilworld report RUN --imagined DIR)"
 
@@ -59,7 +59,7 @@ def ppi_section(
     alpha: float = DEFAULT_ALPHA,
     method: str = "wilson",
     gold: str | None = None,
-    proxy: str = DEFAULT_PROXY,
+    proxy: str | None = None,
     strict: bool = False,
 ) -> dict[str, Any]:
     """The section for the paired run at ``root``; ``strict`` raises :class:`PPIInputError` on bad input."""
@@ -95,7 +95,7 @@ def ppi_section(
     return {
         "method": method,
         "alpha": alpha,
-        "proxy_judge": proxy,
+        "proxy_judge": outcomes.proxy,
         "gold_judge": gold or "auto (sim_checker, else operator, else human labels, else the proxy judge)",
         "imagined_runs": outcomes.imagined_runs,
         "imagined_overlapping_paired": outcomes.overlapping,

@@ -137,3 +137,39 @@ def test_bench_runs_on_a_judged_pool(runs: tuple[Path, Path]) -> None:
     assert set(r["checks"]) >= {"coverage_in_band", "width_ratio_within_10pct", "ess_gain_agreement_0.9_n20_N400"}
     assert r["pool_pairs"] == {c: 3 for c in CKPTS}
     assert len(read_outcomes(paired)) > 0
+
+
+def test_the_proxy_judge_follows_the_learned_judge_and_the_selection(
+    runs: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Default proxy: the run's selected judge, else 'learned' where it judged, else 'vision'; --proxy-judge
+    names one (refused in one line without its verdicts) and is remembered for later recomputations."""
+    import shutil
+
+    from pilworld.data.judge_selection import write_selection
+    from pilworld.ppi.outcomes import default_proxy
+
+    paired, imagined = (tmp_path / "paired", tmp_path / "imagined")
+    shutil.copytree(runs[0], paired)
+    shutil.copytree(runs[1], imagined)
+    for f in (paired / "imagined_runs.json", paired / "metrics.json"):
+        f.unlink(missing_ok=True)
+    assert default_proxy(paired) == "vision"  # judged by the reference alone
+    store = EpisodeStore(paired)
+    record_outcomes(paired, [Outcome(i, "learned", "vision", i % 2 == 0, int(r["length"])) for i, r in
+                             enumerate(store.episodes)])  # fmt: skip
+    assert default_proxy(paired) == "learned"
+    write_selection(paired, ["vision"], "a test")
+    assert default_proxy(paired) == "vision" and ppi_section(paired)["proxy_judge"] == "vision"
+    assert main(["report", str(paired), "--imagined", str(imagined), "--proxy-judge", "nobody"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'nobody' has no verdicts" in err[0] and not (paired / "imagined_runs.json").exists()
+    assert main(["report", str(paired), "--proxy-judge", "learned"]) == 2  # only with --imagined
+    capsys.readouterr()
+    args = ["report", str(paired), "--imagined", str(imagined), "--proxy-judge", "learned", "--max-pairs", "0"]
+    assert main(args) == 0
+    assert json.loads((paired / "metrics.json").read_text())["ppi"]["proxy_judge"] == "learned"
+    assert default_proxy(paired) == "learned"  # remembered over the selection
+    assert main(["report", str(paired), "--imagined", str(imagined), "--max-pairs", "0"]) == 0  # kept
+    assert json.loads((paired / "metrics.json").read_text())["ppi"]["proxy_judge"] == "learned"
+    capsys.readouterr()

@@ -9,15 +9,15 @@ from pathlib import Path
 import pytest
 
 from pilworld.cli.main import main as cli
-from pilworld.data.outcomes import Outcome, record_outcomes
-from pilworld.metrics import compute_run_metrics
-from pilworld.metrics.selection import (
+from pilworld.data.judge_selection import (
     SELECTION_FILE,
     JudgeSelectionError,
     parse_judge_ids,
     read_selection,
     write_selection,
 )
+from pilworld.data.outcomes import Outcome, record_outcomes
+from pilworld.metrics import compute_run_metrics
 from tests.pilworld.metrics.synthetic import ROUNDS, K, SynthPair, write_paired
 
 T = 1 + ROUNDS * K
