@@ -247,7 +247,7 @@ def _apply(args: argparse.Namespace) -> int:
               "pilworld judge select RUN_DIR all: every judge again)")  # fmt: skip
     out["selected"] = not args.no_select
     if not args.no_report:
-        out |= _rewrite_results(args.run_dir, rig)
+        out |= rewrite_results(args.run_dir, rig)
     if args.json:
         print(json.dumps(out))
     return 0
@@ -275,13 +275,13 @@ def _select(args: argparse.Namespace) -> int:
           f"{selection.set_by}); verdicts from: {', '.join(have) or 'no judge'}")  # fmt: skip
     out: dict[str, Any] = {"run_dir": str(args.run_dir), "selection": selection.as_json(), "judges_with_verdicts": have}
     if args.judges is not None and not args.no_report:
-        out |= _rewrite_results(args.run_dir, _rig(args.rig))
+        out |= rewrite_results(args.run_dir, _rig(args.rig))
     if args.json:
         print(json.dumps(out))
     return 0
 
 
-def _rewrite_results(run_dir: Path, rig: RigConfig) -> dict[str, Any]:
+def rewrite_results(run_dir: Path, rig: RigConfig) -> dict[str, Any]:
     """metrics.json and report.html of a paired run written again, now with the learned verdicts."""
     from pilworld.data.pairs import is_paired
     from pilworld.data.reader import EpisodeStore

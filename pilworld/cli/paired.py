@@ -8,11 +8,14 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pilworld.collection.tasks import APPEARANCES
 from pilworld.options.bounds import ROUNDS, SAMPLING_STEPS, SEED, STARTS, SUBTASKS, bounded, check_count
 from simrig.files import SIM_RIG
+
+if TYPE_CHECKING:
+    from pilworld.judges.learned.judge import LearnedSuccessJudge
 
 
 def register(sub: Any) -> None:
@@ -53,6 +56,13 @@ def register(sub: Any) -> None:
         "--rounds", type=int, default=5, help=bounded("closed-loop rounds per subtask, R (default 5)", ROUNDS)
     )
     r.add_argument("--video-mode", default="lossless", choices=["lossless", "h264", "av1"])
+    r.add_argument(
+        "--judge",
+        type=Path,
+        default=None,
+        help="a learned judge folder (pilworld judge train): after the run it judges both branches of every pair "
+        "(= pilworld judge apply JUDGE OUT), SR and HFR come from it, and metrics.json and report.html are written",
+    )
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     r.add_argument(
         "--unattended",
@@ -182,6 +192,11 @@ def _run(args: argparse.Namespace) -> int:
     if not ckpts or not all(ckpts):
         raise ValueError(f"--checkpoints: expected checkpoint names separated by commas, got {args.checkpoints!r}")
     check_tasks(args)
+    learned = None
+    if args.judge is not None:
+        from pilworld.judges.learned.judge import LearnedSuccessJudge
+
+        learned = LearnedSuccessJudge(args.judge)  # a missing or damaged folder: refused before the run
     cfg = PairedConfig(
         rig=str(args.rig),
         task=args.task,
@@ -206,6 +221,23 @@ def _run(args: argparse.Namespace) -> int:
     )
     for origin, t in summary["seconds_per_subtask"].items():
         print(f"  {origin}: {t['median']} s per subtask (median of {t['n']})")
+    if learned is not None:
+        summary["judge"] = _judge_run(learned, args.out, args.rig, progress=not args.json)
     if args.json:
         print(json.dumps(summary))
     return 0
+
+
+def _judge_run(learned: LearnedSuccessJudge, out: Path, rig_path: Path, *, progress: bool) -> dict[str, Any]:
+    """``--judge``: the learned judge on both branches of every pair, selected, then metrics and the report."""
+    from pilworld.cli.judge import rewrite_results
+    from pilworld.config.rig import RigConfig
+    from pilworld.data.judge_selection import write_selection
+    from pilworld.judges.learned.apply import LEARNED_ID, apply_judge
+
+    rig = RigConfig.load(rig_path)
+    applied = apply_judge(learned, out, rig, progress=progress)
+    write_selection(out, [LEARNED_ID], "pilworld paired run --judge")
+    print(f"judge {learned.folder.name!r}: {applied.judged} of {applied.episodes} episodes judged, "
+          f"{len(applied.abstained)} left to people (pilworld annotate serve {out} --abstained)")  # fmt: skip
+    return {"judged": applied.judged, "abstained": applied.abstained, **rewrite_results(out, rig)}

@@ -80,6 +80,7 @@ def test_operator_verdicts_train_a_judge_that_judges_the_run_and_queues_the_rest
     assert learned["folder"] == str(judge.resolve()) and learned["abstained"] == len(abstained)
     assert learned["trained_on"]["labels"] == "operator"
     assert LEARNED_ID in metrics["judges"]["per_judge"]
+    assert metrics["judges"]["selection"]["judges"] == [LEARNED_ID]  # SR and HFR come from it now
 
     # The people's queue is exactly what the judge left to them; their labels join the outcomes.
     assert abstained_episodes(pilot) == abstained
@@ -158,3 +159,32 @@ def test_abstained_needs_an_applied_judge(tmp_path: Path, capsys: pytest.Capture
     assert main(["annotate", "serve", str(run), "--judges", "1", "--abstained"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "judge apply" in err[0], err
+
+
+def test_paired_run_with_a_judge_is_judged_selected_and_reported(
+    pilot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``paired run --judge JUDGE``: the run judged by it when it ends (as ``judge apply``), SR and HFR from it."""
+    judge = tmp_path / "judge"
+    assert main(["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
+                 "--folds", "2", "--steps", "8", "--abstain-budget", "0.5"]) == 0  # fmt: skip
+    out = tmp_path / "run"
+    argv = ["paired", "run", "--rig", FAKE, "--unattended", "--task", str(TASK), "--checkpoints",
+            "scripted_step_05k", "--subtasks", "1", "--rounds", "1", "--seed", "77", "--out", str(out),
+            "--judge", str(judge), "--json"]  # fmt: skip
+    capsys.readouterr()
+    assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    rows = {o.episode_index for o in read_outcomes(out) if o.judge_id == LEARNED_ID}
+    assert summary["judge"]["judged"] == len(rows) and sorted(rows | set(summary["judge"]["abstained"])) == [0, 1]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["judges"]["selection"] == {
+        "judges": [LEARNED_ID],
+        "rule": "only these judges' verdicts count in SR and HFR; every judge's own rates are in per_judge",
+        "set_by": "pilworld paired run --judge",
+    }
+    assert (out / "report.html").is_file() and 'id="judges"' in (out / "report.html").read_text()
+    bad = tmp_path / "not_a_judge"
+    bad.mkdir()
+    assert main([*argv[:-3], "--out", str(tmp_path / "x"), "--judge", str(bad)]) == 2
+    assert "judge.json" in capsys.readouterr().err and not (tmp_path / "x").exists()
