@@ -3,8 +3,11 @@
 1. **Paired runs** (:mod:`pilworld.paired`): every task × checkpoint × subtask twice from the same
    start — on the simulated robot and in the shipped world model (v2: :mod:`pilworld.world_model.composite`).
 2. **Judging** (:mod:`pilworld.judges`): the simulator's privileged checker judged the real branch while
-   it ran; the image-only judge (success from frames, plus the automatic hallucination detector)
-   judges both branches.
+   it ran; a learned success judge (the shipped one trained on the paper's tasks under the flat look,
+   or ``--judge``) with the task-free hallucination detector judges both branches, and SR and HFR come
+   from it (the run's judge selection, :mod:`pilworld.data.judge_selection`). The paper tasks' hand-written
+   image judge (``vision``) also judges both branches, as a named reference: its rates stand beside the
+   learned judge's in ``metrics.json`` (``judges.per_judge``) and the report, on the same episodes.
 3. **Metrics** (:mod:`pilworld.metrics`): SR_real, SR_imag, |ΔSR|, HFR per task, Pearson / Spearman /
    MMRV across task × checkpoint settings, bootstrap intervals, single-step image errors →
    ``metrics.json``.
@@ -64,14 +67,22 @@ def run_demo(
     progress: bool = True,
     workers: int | None = None,
     appearance: str = "flat",
+    judge: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) the demo into ``out``; returns the metrics and where everything went.
 
     ``workers`` processes judge the episodes (default: one per CPU); ``appearance`` is the simulated rig's
-    look (``flat`` until a world model trained on the varied look ships).
+    look (``flat`` until a world model trained on the varied look ships). ``judge``: the learned judge
+    folder whose verdicts SR and HFR come from (default: the shipped flat-look judge under ``flat``; under
+    ``varied``, which no shipped judge was trained on, the hand-written reference is selected instead and
+    the result says so).
     """
     from pilworld.config.rig import RigConfig
+    from pilworld.data.judge_selection import write_selection
     from pilworld.judges.base import judge_dataset, unjudged_episodes
+    from pilworld.judges.learned.apply import LEARNED_ID, apply_judge
+    from pilworld.judges.learned.judge import LearnedSuccessJudge
+    from pilworld.judges.learned.shipped import SHIPPED_JUDGE
     from pilworld.judges.vision import VisionJudge
     from pilworld.metrics import write_metrics
     from pilworld.paired import PairedConfig, paired_run
@@ -79,6 +90,9 @@ def run_demo(
 
     root = Path(out)
     size = demo_size(full, subtasks, rounds)
+    if judge is None and appearance == "flat":
+        judge = SHIPPED_JUDGE
+    learned = None if judge is None else LearnedSuccessJudge(judge)  # a bad folder: refused before any run
     stages: dict[str, float] = {}
     t0 = time.monotonic()
     cfg = PairedConfig(
@@ -96,10 +110,19 @@ def run_demo(
     stages["paired_runs_s"] = time.monotonic() - t0
 
     t = time.monotonic()
-    judge = VisionJudge()
-    todo = unjudged_episodes(root, judge.judge_id)
-    judge_dataset(root, [judge], rig_cfg, episodes=todo, progress=progress, workers=workers)
+    reference = VisionJudge()  # the paper tasks' hand-written judge: a named reference beside the learned one
+    todo = unjudged_episodes(root, reference.judge_id)
+    judge_dataset(root, [reference], rig_cfg, episodes=todo, progress=progress, workers=workers)
     stages["judging_s"] = time.monotonic() - t
+    t = time.monotonic()
+    applied: dict[str, Any] | None = None
+    if learned is not None:
+        result = apply_judge(learned, root, rig_cfg, workers=workers, progress=progress)
+        write_selection(root, [LEARNED_ID], "pilworld demo")
+        applied = {"folder": str(learned.folder.path), "judged": result.judged, "abstained": len(result.abstained)}
+    else:
+        write_selection(root, [reference.judge_id], f"pilworld demo (no learned judge for the {appearance} look)")
+    stages["learned_judge_s"] = time.monotonic() - t
 
     t = time.monotonic()
     metrics = write_metrics(root, root / "metrics.json")
@@ -115,6 +138,7 @@ def run_demo(
         "report_html": str(report),
         "size": {"subtasks": size.subtasks, "checkpoints": list(size.checkpoints), "rounds": size.rounds},
         "appearance": appearance,
+        "learned_judge": applied,
         "pairs": run["pairs_planned"],
         "branches_run": run["branches_run"],
         "seconds_per_subtask": run["seconds_per_subtask"],
@@ -146,4 +170,21 @@ def summary_table(metrics: dict[str, Any]) -> str:
         f"across task × checkpoint settings: Pearson {_fmt(o.get('pearson'), pct=False)}, "
         f"Spearman {_fmt(o.get('spearman'), pct=False)}, MMRV {_fmt(o.get('mmrv'), pct=False)}"
     )
+    rows += judges_lines(metrics.get("judges") or {}, o.get("sr_real_checker"))
     return "\n".join(rows)
+
+
+def judges_lines(judges: dict[str, Any], sr_real_checker: float | None) -> list[str]:
+    """Which judges SR and HFR came from, and every other judge's rates on the same pairs beside them."""
+    used = ", ".join(judges.get("success") or []) or "—"
+    lines = [f"SR and HFR from judge(s) {used}; each judge on its own:"]
+    for jid, d in (judges.get("per_judge") or {}).items():
+        if d.get("kind") == "sim_state":
+            lines.append(f"  {jid:<12} SR_real {_fmt(sr_real_checker)} (the simulator's privileged checker)")
+            continue
+        agree = d.get("agreement_with_checker")
+        lines.append(
+            f"  {jid:<12} SR_real {_fmt(d.get('sr_real'))}, SR_imag {_fmt(d.get('sr_imag'))} over "
+            f"{d.get('pairs_both', 0)} pairs; agrees with the checker on {_fmt(agree)} of real episodes"
+        )
+    return lines

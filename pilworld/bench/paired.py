@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -79,7 +80,10 @@ OVERALL_KEYS = (
 TASK_KEYS = ("sr_real", "sr_imag", "abs_delta_sr", "hfr", "sr_real_checker", "n_subtasks", "ci95")
 
 
-def protocol(quick: bool, *, subtasks: int | None = None, seed: int | None = None, rounds: int = 5) -> PairedProtocol:
+def protocol(
+    quick: bool, *, subtasks: int | None = None, seed: int | None = None, rounds: int = 5, judge: str = ""
+) -> PairedProtocol:
+    """The bench's pairs; ``judge``: a learned judge folder SR and HFR come from ("" = the hand-written reference)."""
     from pilworld.policies.registry import policy_names
     from simrig.tasks import TASK_NAMES
 
@@ -88,9 +92,10 @@ def protocol(quick: bool, *, subtasks: int | None = None, seed: int | None = Non
         checkpoints=QUICK_CHECKPOINTS if quick else tuple(policy_names()),
         subtasks=subtasks or (QUICK_SUBTASKS if quick else FULL_SUBTASKS),
         rounds=rounds,
+        judge=judge,
     )
     if seed is not None:
-        base = PairedProtocol(base.tasks, base.checkpoints, base.subtasks, base.rounds, seed)
+        base = replace(base, seed=seed)
     return base
 
 
@@ -171,12 +176,24 @@ def summarize_variant(result: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def _judges_row(metrics: dict[str, Any]) -> dict[str, Any]:
+    """Which judges a variant's SR and HFR came from, and each judge's own rates on the same pairs."""
+    j = metrics.get("judges") or {}
+    per = {
+        jid: {k: d.get(k) for k in ("sr_real", "sr_imag", "hfr", "pairs_both", "agreement_with_checker")}
+        for jid, d in (j.get("per_judge") or {}).items()
+        if d.get("kind") != "sim_state"
+    }
+    return {"selection": j.get("selection"), "per_judge": per, "learned": j.get("learned")}
+
+
 def failure_faithfulness(run: str) -> dict[str, Any]:
     """On pairs whose real branch failed, the share whose imagined branch failed too (and the converse)."""
+    from pilworld.data.judge_selection import read_selection
     from pilworld.data.pairs import load_pairs
     from pilworld.metrics.success import score_pairs
 
-    scores = score_pairs(load_pairs(run))
+    scores = score_pairs(load_pairs(run), read_selection(run))
     both = [(s.real, s.imag) for s in scores if s.real is not None and s.imag is not None]
     fails = [i for r, i in both if r < 0.5]
     wins = [i for r, i in both if r >= 0.5]
@@ -199,9 +216,18 @@ def run_paired_bench(
     workers: int | None = None,
     progress: bool = True,
     real_from: str | Path | None = None,
+    judge: str | Path | None = None,
 ) -> dict[str, Any]:
+    """Every chosen variant on the protocol's pairs. ``judge``: the learned judge folder SR and HFR come from
+    (default: the shipped one; "" = the hand-written reference alone)."""
+    from pilworld.judges.learned.folder import load_judge
+    from pilworld.judges.learned.shipped import SHIPPED_JUDGE
+
     t0 = time.monotonic()
-    proto = protocol(quick, subtasks=subtasks, seed=seed)
+    judge = str(SHIPPED_JUDGE if judge is None else judge)
+    if judge:
+        load_judge(judge)  # a missing or damaged folder: one line before hours of work
+    proto = protocol(quick, subtasks=subtasks, seed=seed, judge=judge)
     chosen = select_variants(quick, variants)
     results = evaluate_variants(chosen, proto, out, rig=rig, workers=workers, progress=progress, real_from=real_from)
     rows = {name: summarize_variant(r) for name, r in results.items()}
@@ -216,8 +242,14 @@ def run_paired_bench(
             "rounds": proto.rounds,
             "seed0": proto.seed,
             "pairs_per_variant": proto.pairs,
-            "judge": "image-only success judge + automatic hallucination detector (pilworld.judges.vision)",
+            "judge": (
+                f"learned success judge {judge} + the task-free hallucination detector (judge 'learned'); the "
+                "hand-written reference (pilworld.judges.vision, judge 'vision') beside it on the same episodes"
+                if judge
+                else "the paper tasks' hand-written image judge + hallucination detector (pilworld.judges.vision)"
+            ),
         },
+        "judges": {name: _judges_row(r["metrics"]) for name, r in results.items()},
         "overall": shipped["overall"],
         "tasks": shipped["tasks"],
         "single_step": shipped["single_step"],
@@ -278,6 +310,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--real-from", type=Path, default=None, help="copy every variant's real branches from this run folder"
     )
+    parser.add_argument(
+        "--judge",
+        default=None,
+        help="learned judge folder SR and HFR come from (default: the shipped one; '' = the hand-written reference "
+        "alone); the reference judges every run either way, beside it",
+    )
     parser.add_argument("--chart", type=Path, default=None, help="PNG to draw (default OUT/paired.png)")
     add_json(parser)
 
@@ -299,6 +337,7 @@ def run(args: argparse.Namespace) -> int:
         workers=args.workers,
         progress=not args.json,
         real_from=args.real_from,
+        judge=args.judge,
     )
     r["chart"] = str(paired_table_chart(r["variants"], r["targets"], args.chart or out / "paired.png"))
     return emit(args, r, summary_lines(r))
@@ -315,4 +354,24 @@ def summary_lines(r: dict[str, Any]) -> list[str]:
         f"× {p['subtasks']} subtasks, R={p['rounds']}, seeds from {p['seed0']}",
         *table(PAIRED_COLUMNS, rows),
         f"  targets: |ΔSR| ≤ 5 points, HFR ≥ 0.85, Pearson ≥ 0.95; chart {r['chart']}",
+        f"  judge: {p['judge']}",
+        *_judge_lines(r.get("judges") or {}),
     ]
+
+
+def _judge_lines(judges: dict[str, Any]) -> list[str]:
+    """Per variant, every judge's SR_real / SR_imag / HFR on the same pairs (the selected one counts)."""
+
+    def fmt(x: Any, scale: float, digits: int) -> str:
+        return "—" if x is None else f"{scale * float(x):.{digits}f}"
+
+    lines = []
+    for name, row in judges.items():
+        chosen = (row.get("selection") or {}).get("judges")
+        parts = [
+            f"{jid}{'*' if chosen is None or jid in chosen else ''} {fmt(d.get('sr_real'), 100, 1)}/"
+            f"{fmt(d.get('sr_imag'), 100, 1)} HFR {fmt(d.get('hfr'), 1, 2)}"
+            for jid, d in row.get("per_judge", {}).items()
+        ]
+        lines.append(f"  {name:<15} by judge (SR_real/SR_imag %, * counts): {'; '.join(parts)}")
+    return lines

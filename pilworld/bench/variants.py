@@ -4,8 +4,10 @@ A :class:`ModelVariant` is a world model plus how the imagined branch runs it (a
 history hidden or not, resized to the rig or not). :func:`evaluate_variants` runs one protocol — tasks ×
 checkpoints × subtasks, R rounds, layout seeds — for several variants: the first variant's run executes
 the real branches, and every other run copies them (``PairedConfig.real_from``), so the real side is
-identical across variants and paid for once. Each run folder is then judged by the image-only judge
-(success + automatic hallucination detector) and gets its ``metrics.json``. Everything resumes: rerun
+identical across variants and paid for once. Each run folder is then judged by the paper tasks'
+hand-written image judge (success + automatic hallucination detector; the named reference) and, when the
+protocol names one, by a learned judge whose verdicts SR and HFR then come from (the run's judge
+selection); then it gets its ``metrics.json``. Everything resumes: rerun
 the same call and finished branches, verdicts and metrics are reused.
 
 The benchmark weights (the Ctrl-World-style baseline and the ablations, trained on the same data and
@@ -20,11 +22,14 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pilworld.collection.workers import process_map, worker_count
 from pilworld.types import ChunkSpec
 from pilworld.world_model import V1_CHECKPOINT
+
+if TYPE_CHECKING:
+    from pilworld.config.rig import RigConfig
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 BENCH_WEIGHTS = REPO_ROOT / "weights" / "bench"
@@ -161,6 +166,9 @@ class PairedProtocol:
     rounds: int = 5
     seed: int = 6_000_000  # reserved for benchmark pairs (docs/RESULTS.md "Seeds")
     extra: dict[str, Any] = field(default_factory=dict)
+    # A learned judge folder SR and HFR come from (its verdicts as judge "learned"); "" = the paper tasks'
+    # hand-written image judge ("vision"), which judges every run either way as the named reference.
+    judge: str = ""
 
     def __post_init__(self) -> None:
         if self.subtasks < 1 or self.rounds < 1:
@@ -186,6 +194,7 @@ def run_variant(
 ) -> dict[str, Any]:
     """Paired run + judging + metrics of one variant in ``out``; returns its result (also in ``RESULT_FILE``)."""
     from pilworld.config.rig import RigConfig
+    from pilworld.data.judge_selection import write_selection
     from pilworld.judges.base import judge_dataset, unjudged_episodes
     from pilworld.judges.vision import VisionJudge
     from pilworld.metrics import write_metrics
@@ -211,14 +220,18 @@ def run_variant(
     run = paired_run(cfg, progress=progress)
     paired_s = time.monotonic() - t0
     t = time.monotonic()
-    judge = VisionJudge()
-    todo = unjudged_episodes(out, judge.judge_id)
+    reference = VisionJudge()
+    todo = unjudged_episodes(out, reference.judge_id)
+    rig_cfg = RigConfig.load(rig)
     if todo:
-        judge_dataset(out, [judge], RigConfig.load(rig), episodes=todo, progress=progress, workers=workers)
+        judge_dataset(out, [reference], rig_cfg, episodes=todo, progress=progress, workers=workers)
+    learned_new = _apply_learned(protocol.judge, out, rig_cfg, workers=workers, progress=progress)
+    if not protocol.judge:
+        write_selection(out, [reference.judge_id], "pilworld bench (the hand-written reference judge)")
     judging_s = time.monotonic() - t
     t = time.monotonic()
     cached = out / RESULT_FILE
-    if run["branches_run"] == 0 and not todo and cached.is_file():
+    if run["branches_run"] == 0 and not todo and not learned_new and cached.is_file():
         # Nothing new was run or judged, so the stored metrics are this run's: reuse them (the single-step
         # SSIM of 300 pairs alone takes minutes). Delete the file to force a recomputation.
         metrics = json.loads(cached.read_text())["metrics"]
@@ -237,6 +250,20 @@ def run_variant(
     }
     (out / RESULT_FILE).write_text(json.dumps(result))
     return result
+
+
+def _apply_learned(judge: str, out: Path, rig: RigConfig, *, workers: int | None, progress: bool) -> bool:
+    """Apply the learned judge folder ``judge`` to the run ``out`` and select it; whether any verdict changed."""
+    if not judge:
+        return False
+    from pilworld.data.judge_selection import write_selection
+    from pilworld.judges.learned.apply import LEARNED_ID, apply_judge, read_record
+    from pilworld.judges.learned.judge import LearnedSuccessJudge
+
+    before = read_record(out)
+    apply_judge(LearnedSuccessJudge(judge), out, rig, workers=workers, progress=progress)
+    write_selection(out, [LEARNED_ID], "pilworld bench")
+    return read_record(out) != before
 
 
 def evaluate_variants(

@@ -34,6 +34,13 @@ def register(sub: Any) -> None:
         help="the simulated rig's look: flat (default, the shipped world model's training look) or varied "
         "(textures, random light, camera noise; docs/sim_rig.md)",
     )
+    p.add_argument(
+        "--judge",
+        type=Path,
+        default=None,
+        help="learned judge folder SR and HFR come from (default: the shipped one, trained on the flat look; "
+        "under --appearance varied none ships, and the hand-written reference is selected unless you name one)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.set_defaults(handler=_demo)
 
@@ -51,12 +58,14 @@ def _demo(args: argparse.Namespace) -> int:
         progress=not args.json,
         workers=args.workers,
         appearance=args.appearance,
+        judge=args.judge,
     )
     print(summary_table(result["metrics"]))
     st = result["stages"]
     print(
         f"demo: {result['pairs']} paired subtasks ({', '.join(result['size']['checkpoints'])}) in {st['total_s']} s "
-        f"(paired runs {st['paired_runs_s']} s, judging {st['judging_s']} s, report {st['report_s']} s)"
+        f"(paired runs {st['paired_runs_s']} s, judging {st['judging_s']} s + {st['learned_judge_s']} s learned, "
+        f"report {st['report_s']} s)"
     )
     print(f"  metrics: {result['metrics_json']}\n  report:  {result['report_html']}\n  dataset: {result['out']}")
     if args.json:

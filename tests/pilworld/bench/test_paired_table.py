@@ -5,6 +5,7 @@ one-pair protocol (the second variant copying the first's real branches) and its
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 from collections.abc import Iterator
@@ -39,8 +40,10 @@ PNG = b"\x89PNG\r\n\x1a\n"
 ONE_PAIR = PairedProtocol(tasks=("sort_cubes",), checkpoints=("scripted_step_30k",), subtasks=1, rounds=1)
 
 
-def _one_pair(quick: bool, *, subtasks: int | None = None, seed: int | None = None, rounds: int = 5) -> PairedProtocol:
-    return ONE_PAIR
+def _one_pair(
+    quick: bool, *, subtasks: int | None = None, seed: int | None = None, rounds: int = 5, judge: str = ""
+) -> PairedProtocol:
+    return dataclasses.replace(ONE_PAIR, judge=judge)
 
 
 # ---------------------------------------------------------------------- variants and protocol
@@ -164,6 +167,22 @@ def table(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, dict
     assert rc == 0
     stdout = buf.getvalue()
     yield out, json.loads(stdout.strip().splitlines()[-1]), stdout
+
+
+def test_sr_comes_from_the_shipped_learned_judge_with_the_reference_beside_it(
+    table: tuple[Path, dict[str, Any], str],
+) -> None:
+    from pilworld.judges.learned.shipped import SHIPPED_JUDGE
+
+    out, r, stdout = table
+    assert str(SHIPPED_JUDGE) in r["protocol"]["judge"]
+    for name in ("pilworld", "no_history"):
+        row = r["judges"][name]
+        assert row["selection"]["judges"] == ["learned"] and row["learned"]["folder"] == str(SHIPPED_JUDGE)
+        assert set(row["per_judge"]) == {"learned", "vision"} or set(row["per_judge"]) == {"vision"}  # all abstained
+        metrics = json.loads((out / name / "metrics.json").read_text())
+        assert metrics["judges"]["selection"]["set_by"] == "pilworld bench"
+    assert "by judge (SR_real/SR_imag %, * counts)" in stdout and "vision " in stdout
 
 
 def test_table_json_has_the_headline_figures(table: tuple[Path, dict[str, Any], str]) -> None:

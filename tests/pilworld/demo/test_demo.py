@@ -68,6 +68,41 @@ def test_every_episode_is_judged_and_both_origins_are_stored(demo_run: tuple[Pat
     assert summary["pairs"] == 9
 
 
+def test_sr_comes_from_the_shipped_learned_judge_with_the_reference_beside_it(
+    demo_run: tuple[Path, dict[str, object], str],
+) -> None:
+    """Judge selection explicit in metrics.json: the learned judge counts; the hand-written one is shown beside."""
+    from pilworld.judges.learned.shipped import SHIPPED_JUDGE
+
+    out, summary, text = demo_run
+    metrics = json.loads((out / "metrics.json").read_text())
+    judges = metrics["judges"]
+    assert judges["selection"]["judges"] == ["learned"] and judges["selection"]["set_by"] == "pilworld demo"
+    assert judges["learned"]["folder"] == str(SHIPPED_JUDGE) and judges["learned"]["complete"]
+    assert {"learned", "vision", "sim_checker"} <= set(judges["per_judge"])
+    rows = {(o.episode_index, o.judge_id) for o in read_outcomes(out)}
+    learned = {i for i, j in rows if j == "learned"}
+    assert len(learned) + judges["learned"]["abstained"] == EpisodeStore(out).num_episodes
+    if learned:
+        assert judges["success"] in (["learned"], [])  # [] when it abstained on a branch of every pair
+    assert summary["learned_judge"] == {
+        "folder": str(SHIPPED_JUDGE),
+        "judged": len(learned),
+        "abstained": judges["learned"]["abstained"],
+    }
+    assert "SR and HFR from judge(s)" in text and "  vision " in text and "  learned " in text
+    assert 'id="judges"' in (out / "report.html").read_text()
+
+
+def test_a_bad_judge_folder_is_refused_before_any_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "judge"
+    bad.mkdir()
+    out = tmp_path / "run"
+    assert main(["demo", "--out", str(out), "--subtasks", "1", "--rounds", "1", "--judge", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "judge.json" in err[0] and not out.exists()
+
+
 def test_report_and_summary_table(demo_run: tuple[Path, dict[str, object], str]) -> None:
     out, summary, text = demo_run
     html = (out / "report.html").read_text()
