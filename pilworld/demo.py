@@ -177,7 +177,8 @@ def summary_table(metrics: dict[str, Any]) -> str:
 
 def judges_lines(judges: dict[str, Any], sr_real_checker: float | None) -> list[str]:
     """Which judges SR and HFR came from, and every other judge's rates on the same pairs beside them."""
-    used = ", ".join(judges.get("success") or []) or "—"
+    chosen = (judges.get("selection") or {}).get("judges")
+    used = "every judge with verdicts on both branches" if chosen is None else ", ".join(chosen)
     lines = [f"SR and HFR from judge(s) {used}; each judge on its own:"]
     for jid, d in (judges.get("per_judge") or {}).items():
         if d.get("kind") == "sim_state":
