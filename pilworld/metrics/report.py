@@ -22,7 +22,7 @@ from pilworld.metrics.bootstrap import DEFAULT_RESAMPLES, DEFAULT_SEED, LEVEL
 from pilworld.metrics.ranking import ranking_metrics
 from pilworld.metrics.ranking_ci import ranking_intervals
 from pilworld.metrics.single_step import DEFAULT_ACTION_ATOL, single_step_metrics
-from pilworld.metrics.success import PairScore, group_metrics, judge_summary, score_pairs
+from pilworld.metrics.success import PairScore, group_metrics, judge_summary, no_common_judge_reason, score_pairs
 
 METRICS_FILE = "metrics.json"
 FORMAT = "pilworld.metrics/v1"
@@ -74,6 +74,7 @@ def compute_run_metrics(
     paired = load_pairs(root, store)
     selection = read_selection(root)
     scores = score_pairs(paired, selection)
+    why = no_common_judge_reason(selection)
     by_task: dict[str, list[PairScore]] = defaultdict(list)
     by_setting: dict[tuple[str, str], list[PairScore]] = defaultdict(list)
     for s in scores:
@@ -82,17 +83,17 @@ def compute_run_metrics(
 
     settings = []
     for (task, ckpt), group in sorted(by_setting.items()):
-        m = group_metrics(group, bootstrap=0)
+        m = group_metrics(group, bootstrap=0, no_judge_reason=why)
         m.pop("ci95")
         settings.append({"task": task, "checkpoint": ckpt, **m, "n": m["n_subtasks"]})
 
     tasks: dict[str, dict[str, Any]] = {}
     for task, group in sorted(by_task.items()):
-        tasks[task] = group_metrics(group, bootstrap=bootstrap, seed=seed)
+        tasks[task] = group_metrics(group, bootstrap=bootstrap, seed=seed, no_judge_reason=why)
         across = _ranking([s for s in settings if s["task"] == task])
         tasks[task]["across_checkpoints"] = across
 
-    overall = group_metrics(scores, bootstrap=bootstrap, seed=seed)
+    overall = group_metrics(scores, bootstrap=bootstrap, seed=seed, no_judge_reason=why)
     for key in ("abs_delta_sr", "hfr"):
         value, reason = _task_mean(tasks, key)
         overall[f"{key}_task_mean"] = value

@@ -88,8 +88,22 @@ def _column(scores: Sequence[PairScore], name: str) -> np.ndarray[Any, np.dtype[
     return np.array([np.nan if getattr(s, name) is None else getattr(s, name) for s in scores], dtype=np.float64)
 
 
+def no_common_judge_reason(selection: JudgeSelection) -> str:
+    """Why a group has no SR: no both-branch judge at all, or none among the selected ones."""
+    if selection.judges is None:
+        return NO_COMMON_JUDGE
+    return (
+        f"none of the selected judges ({', '.join(selection.judges)}) gave verdicts on both branches of these "
+        "pairs (the run's judges/selection.json; pilworld judge select RUN_DIR all: every judge counts)"
+    )
+
+
 def group_metrics(
-    scores: Sequence[PairScore], *, bootstrap: int = DEFAULT_RESAMPLES, seed: int = DEFAULT_SEED
+    scores: Sequence[PairScore],
+    *,
+    bootstrap: int = DEFAULT_RESAMPLES,
+    seed: int = DEFAULT_SEED,
+    no_judge_reason: str = NO_COMMON_JUDGE,
 ) -> dict[str, Any]:
     """SR_real, SR_imag, ΔSR = SR_imag − SR_real, |ΔSR|, HFR, sr_real_checker of a group of pairs.
 
@@ -121,7 +135,7 @@ def group_metrics(
         out["abs_delta_sr"] = abs(out["delta_sr"])
     else:
         for key in ("sr_real", "sr_imag", "delta_sr", "abs_delta_sr"):
-            out[f"{key}_reason"] = NO_COMMON_JUDGE
+            out[f"{key}_reason"] = no_judge_reason
     if out["hfr"] is None:
         out["hfr_reason"] = NO_HALLUCINATION_VERDICT
     if out["sr_real_checker"] is None:
