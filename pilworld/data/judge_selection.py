@@ -57,14 +57,20 @@ class JudgeSelection:
 DEFAULT = JudgeSelection(None)
 
 
+def _valid_ids(judges: object) -> bool:
+    """A non-empty list or tuple of judge ids (the one rule for the command line, the file and callers)."""
+    return (
+        isinstance(judges, list | tuple) and bool(judges) and all(isinstance(j, str) and _ID.match(j) for j in judges)
+    )
+
+
 def parse_judge_ids(text: str) -> tuple[str, ...] | None:
     """``"learned,human_1"`` → the ids; ``"all"`` → None (every judge). One line naming what is wrong otherwise."""
     text = text.strip()
     if text == "all":
         return None
     ids = tuple(dict.fromkeys(p.strip() for p in text.split(",")))
-    bad = [p for p in ids if not _ID.match(p)]
-    if not ids or bad:
+    if not _valid_ids(ids):
         raise JudgeSelectionError(
             f"judges: expected comma-separated judge ids (e.g. learned,human_1) or 'all', got {text!r}"
         )
@@ -82,8 +88,7 @@ def read_selection(root: str | Path) -> JudgeSelection:
             raise ValueError(f"format {data.get('format')!r}, expected {FORMAT!r}")
         judges = data["judges"]
         if judges is not None:
-            ok = isinstance(judges, list) and judges and all(isinstance(j, str) and _ID.match(j) for j in judges)
-            if not ok:
+            if not isinstance(judges, list) or not _valid_ids(judges):
                 raise ValueError(f"'judges' must be null or a non-empty list of judge ids, got {judges!r}")
             judges = tuple(judges)
         return JudgeSelection(judges, str(data.get("set_by", "unknown")))
@@ -96,7 +101,7 @@ def read_selection(root: str | Path) -> JudgeSelection:
 def write_selection(root: str | Path, judges: Sequence[str] | None, set_by: str) -> JudgeSelection:
     """Record that ``judges`` (None: every judge) count in the run at ``root``; returns the selection."""
     selection = JudgeSelection(None if judges is None else tuple(judges), set_by)
-    if selection.judges is not None:
-        parse_judge_ids(",".join(selection.judges))  # the same rule as on the command line
+    if selection.judges is not None and not _valid_ids(selection.judges):
+        raise JudgeSelectionError(f"judges: expected a non-empty list of judge ids, got {list(selection.judges)!r}")
     write_json(Path(root) / SELECTION_FILE, {"format": FORMAT, **selection.as_json()})
     return selection

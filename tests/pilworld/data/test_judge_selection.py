@@ -119,9 +119,12 @@ def test_a_damaged_selection_file_is_named(run: Path) -> None:
             compute_run_metrics(run, bootstrap=0, single_step=False)
 
 
-def test_parse_judge_ids() -> None:
+def test_parse_judge_ids(tmp_path: Path) -> None:
     assert parse_judge_ids("learned, human_1,learned") == ("learned", "human_1")
     assert parse_judge_ids(" all ") is None
     for bad in ("", ",", "a b", "x" * 65):
         with pytest.raises(JudgeSelectionError):
             parse_judge_ids(bad)
+    with pytest.raises(JudgeSelectionError):  # the same rule for callers: "a,b" is not one id
+        write_selection(tmp_path, ["a,b"], "a test")
+    assert not (tmp_path / SELECTION_FILE).exists()
