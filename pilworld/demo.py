@@ -81,7 +81,7 @@ def run_demo(
     from pilworld.config.rig import RigConfig
     from pilworld.data.judge_selection import write_selection
     from pilworld.judges.base import judge_dataset, unjudged_episodes
-    from pilworld.judges.learned.apply import LEARNED_ID, apply_judge
+    from pilworld.judges.learned.apply import apply_judge
     from pilworld.judges.learned.judge import LearnedSuccessJudge
     from pilworld.judges.learned.shipped import SHIPPED_JUDGE
     from pilworld.judges.vision import VisionJudge
@@ -118,8 +118,7 @@ def run_demo(
     t = time.monotonic()
     applied: dict[str, Any] | None = None
     if learned is not None:
-        result = apply_judge(learned, root, rig_cfg, workers=workers, progress=progress)
-        write_selection(root, [LEARNED_ID], "pilworld demo")
+        result = apply_judge(learned, root, rig_cfg, workers=workers, progress=progress, select_as="pilworld demo")
         applied = {"folder": str(learned.folder.path), "judged": result.judged, "abstained": len(result.abstained)}
     else:
         write_selection(root, [reference.judge_id], f"pilworld demo (no learned judge for the {appearance} look)")
@@ -171,22 +170,7 @@ def summary_table(metrics: dict[str, Any]) -> str:
         f"across task × checkpoint settings: Pearson {_fmt(o.get('pearson'), pct=False)}, "
         f"Spearman {_fmt(o.get('spearman'), pct=False)}, MMRV {_fmt(o.get('mmrv'), pct=False)}"
     )
-    rows += judges_lines(metrics.get("judges") or {}, o.get("sr_real_checker"))
+    from pilworld.report.judges_view import judges_text
+
+    rows += judges_text(metrics.get("judges") or {}, o.get("sr_real_checker"))
     return "\n".join(rows)
-
-
-def judges_lines(judges: dict[str, Any], sr_real_checker: float | None) -> list[str]:
-    """Which judges SR and HFR came from, and every other judge's rates on the same pairs beside them."""
-    chosen = (judges.get("selection") or {}).get("judges")
-    used = "every judge with verdicts on both branches" if chosen is None else ", ".join(chosen)
-    lines = [f"SR and HFR from judge(s) {used}; each judge on its own:"]
-    for jid, d in (judges.get("per_judge") or {}).items():
-        if d.get("kind") == "sim_state":
-            lines.append(f"  {jid:<12} SR_real {_fmt(sr_real_checker)} (the simulator's privileged checker)")
-            continue
-        agree = d.get("agreement_with_checker")
-        lines.append(
-            f"  {jid:<12} SR_real {_fmt(d.get('sr_real'))}, SR_imag {_fmt(d.get('sr_imag'))} over "
-            f"{d.get('pairs_both', 0)} pairs; agrees with the checker on {_fmt(agree)} of real episodes"
-        )
-    return lines

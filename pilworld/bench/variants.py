@@ -256,13 +256,11 @@ def _apply_learned(judge: str, out: Path, rig: RigConfig, *, workers: int | None
     """Apply the learned judge folder ``judge`` to the run ``out`` and select it; whether any verdict changed."""
     if not judge:
         return False
-    from pilworld.data.judge_selection import write_selection
-    from pilworld.judges.learned.apply import LEARNED_ID, apply_judge, read_record
+    from pilworld.judges.learned.apply import apply_judge, read_record
     from pilworld.judges.learned.judge import LearnedSuccessJudge
 
     before = read_record(out)
-    apply_judge(LearnedSuccessJudge(judge), out, rig, workers=workers, progress=progress)
-    write_selection(out, [LEARNED_ID], "pilworld bench")
+    apply_judge(LearnedSuccessJudge(judge), out, rig, workers=workers, progress=progress, select_as="pilworld bench")
     return read_record(out) != before
 
 

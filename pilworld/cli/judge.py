@@ -222,7 +222,10 @@ def _apply(args: argparse.Namespace) -> int:
         raise ValueError(f"RUN_DIR: {args.run_dir} is not a folder")
     judge = LearnedSuccessJudge(args.judge)
     rig = _rig(args.rig)
-    result = apply_judge(judge, args.run_dir, rig, workers=args.workers, progress=sys.stderr.isatty())
+    select_as = None if args.no_select else "pilworld judge apply"
+    result = apply_judge(
+        judge, args.run_dir, rig, workers=args.workers, progress=sys.stderr.isatty(), select_as=select_as
+    )
     if result.withdrawn:
         print(f"withdrew {result.withdrawn} verdicts of the judge applied before")
     print(
@@ -239,10 +242,9 @@ def _apply(args: argparse.Namespace) -> int:
         "record": str(result.record),
     }
     if not args.no_select:
-        from pilworld.data.judge_selection import SELECTION_FILE, write_selection
+        from pilworld.data.judge_selection import SELECTION_FILE
         from pilworld.judges.learned.apply import LEARNED_ID
 
-        write_selection(args.run_dir, [LEARNED_ID], "pilworld judge apply")
         print(f"SR and HFR of {args.run_dir} now come from judge {LEARNED_ID!r} ({args.run_dir / SELECTION_FILE}; "
               "pilworld judge select RUN_DIR all: every judge again)")  # fmt: skip
     out["selected"] = not args.no_select
@@ -255,11 +257,11 @@ def _apply(args: argparse.Namespace) -> int:
 
 def _select(args: argparse.Namespace) -> int:
     from pilworld.data.judge_selection import SELECTION_FILE, parse_judge_ids, read_selection, write_selection
-    from pilworld.data.outcomes import read_outcomes
+    from pilworld.data.outcomes import judges_with_verdicts
 
     if not (args.run_dir / "meta" / "info.json").is_file():
         raise ValueError(f"RUN_DIR: {args.run_dir}: not a run folder (no meta/info.json)")
-    have = sorted({o.judge_id for o in read_outcomes(args.run_dir)})
+    have = judges_with_verdicts(args.run_dir)
     selection = read_selection(args.run_dir)
     if args.judges is not None:
         ids = parse_judge_ids(args.judges)
@@ -293,18 +295,11 @@ def rewrite_results(run_dir: Path, rig: RigConfig) -> dict[str, Any]:
         return {"metrics_json": None, "report_html": None}
     metrics = write_metrics(run_dir)
     report = build_report(run_dir, rig=rig)
+    from pilworld.report.judges_view import judges_text
+
     print(f"metrics: {run_dir / METRICS_FILE}; report: {report}")
-    for jid, mine in metrics["judges"]["per_judge"].items():
-        if mine.get("kind") == "sim_state":
-            continue
-        counts = " (counts)" if jid in metrics["judges"]["success"] else ""
-        print(f"  judge {jid}: SR_real {_pct(mine.get('sr_real'))}, SR_imag {_pct(mine.get('sr_imag'))} over "
-              f"{mine.get('pairs_both', 0)} pairs{counts}")  # fmt: skip
+    print("\n".join(judges_text(metrics["judges"], metrics["overall"].get("sr_real_checker"))))
     return {"metrics_json": str(run_dir / METRICS_FILE), "report_html": str(report)}
-
-
-def _pct(x: Any) -> str:
-    return "n/a" if x is None else f"{100 * float(x):.0f} %"
 
 
 def _show(args: argparse.Namespace) -> int:

@@ -232,12 +232,10 @@ def _judge_run(learned: LearnedSuccessJudge, out: Path, rig_path: Path, *, progr
     """``--judge``: the learned judge on both branches of every pair, selected, then metrics and the report."""
     from pilworld.cli.judge import rewrite_results
     from pilworld.config.rig import RigConfig
-    from pilworld.data.judge_selection import write_selection
-    from pilworld.judges.learned.apply import LEARNED_ID, apply_judge
+    from pilworld.judges.learned.apply import apply_judge
 
     rig = RigConfig.load(rig_path)
-    applied = apply_judge(learned, out, rig, progress=progress)
-    write_selection(out, [LEARNED_ID], "pilworld paired run --judge")
+    applied = apply_judge(learned, out, rig, progress=progress, select_as="pilworld paired run --judge")
     print(f"judge {learned.folder.name!r}: {applied.judged} of {applied.episodes} episodes judged, "
           f"{len(applied.abstained)} left to people (pilworld annotate serve {out} --abstained)")  # fmt: skip
     return {"judged": applied.judged, "abstained": applied.abstained, **rewrite_results(out, rig)}

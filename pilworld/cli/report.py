@@ -64,9 +64,9 @@ def _report(args: argparse.Namespace) -> int:
 
         runs = [*[str(r) for r in args.imagined]]
         if args.proxy_judge is not None:
-            from pilworld.data.outcomes import read_outcomes
+            from pilworld.data.outcomes import judges_with_verdicts
 
-            have = sorted({o.judge_id for o in read_outcomes(args.run_dir)})
+            have = judges_with_verdicts(args.run_dir)
             if args.proxy_judge not in have:
                 raise ValueError(f"--proxy-judge: {args.proxy_judge!r} has no verdicts in {args.run_dir} "
                                  f"(it has: {', '.join(have) or 'none'})")  # fmt: skip

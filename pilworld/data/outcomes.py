@@ -137,6 +137,11 @@ def read_outcomes(root: str | Path) -> list[Outcome]:
         raise DamagedDatasetError(f"{path}: outcomes table unreadable ({detail})") from None
 
 
+def judges_with_verdicts(root: str | Path) -> list[str]:
+    """The ids of every judge with a verdict in the dataset at ``root``, sorted."""
+    return sorted({o.judge_id for o in read_outcomes(root)})
+
+
 @contextmanager
 def _locked(root: Path) -> Iterator[None]:
     (root / "meta").mkdir(parents=True, exist_ok=True)

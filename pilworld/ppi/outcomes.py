@@ -22,7 +22,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pilworld.data.outcomes import Outcome, read_outcomes
+from pilworld.data.outcomes import Outcome, judges_with_verdicts, read_outcomes
 from pilworld.data.pairs import load_pairs
 from pilworld.data.reader import EpisodeStore
 
@@ -98,12 +98,13 @@ def default_proxy(root: str | Path) -> str:
     from pilworld.data.judge_selection import read_selection
 
     attached = Path(root) / ATTACHED_FILE
-    if attached.is_file() and json.loads(attached.read_text()).get("proxy_judge"):
-        return str(json.loads(attached.read_text())["proxy_judge"])  # pilworld report --proxy-judge
+    recorded = json.loads(attached.read_text()).get("proxy_judge") if attached.is_file() else None
+    if recorded:
+        return str(recorded)  # pilworld report --proxy-judge
     chosen = read_selection(root).judges
     if chosen is not None and len(chosen) == 1:
         return chosen[0]
-    if any(o.judge_id == LEARNED_PROXY for o in read_outcomes(Path(root))):
+    if LEARNED_PROXY in judges_with_verdicts(root):
         return LEARNED_PROXY
     return REFERENCE_PROXY
 

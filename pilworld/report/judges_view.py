@@ -1,7 +1,8 @@
 """The report's "Judges" section: which judges' verdicts the results come from, each judge's own rates on the
 same pairs, and the applied learned judge's validation figures (metrics.json ``judges``, docs/metrics.md).
 
-Shown whenever metrics.json has a ``judges`` block; every missing value is "—".
+Shown whenever metrics.json has a ``judges`` block; every missing value is "—". :func:`judges_text` gives the
+same block as lines for the terminal (``pilworld demo``, ``judge apply``, ``judge select``).
 """
 
 from __future__ import annotations
@@ -84,3 +85,26 @@ def judges_section(metrics: Mapping[str, Any] | None) -> str:
     out.append(f'<table id="judges-table"><thead><tr>{th}</tr></thead><tbody>{"".join(rows)}</tbody></table>')
     out.append("</section>")
     return "".join(out)
+
+
+def _pct(x: Any) -> str:
+    return DASH if x is None else f"{100 * float(x):.0f}%"
+
+
+def judges_text(judges: Mapping[str, Any], sr_real_checker: float | None) -> list[str]:
+    """Which judges SR and HFR came from, and every judge's own rates on the same pairs, as terminal lines."""
+    selection = judges.get("selection")
+    chosen = selection.get("judges") if isinstance(selection, Mapping) else None
+    used = "every judge with verdicts on both branches" if chosen is None else ", ".join(chosen)
+    lines = [f"SR and HFR from judge(s) {used}; each judge on its own:"]
+    per = judges.get("per_judge")
+    for jid, d in (per if isinstance(per, Mapping) else {}).items():
+        if d.get("kind") == "sim_state":
+            lines.append(f"  {jid:<12} SR_real {_pct(sr_real_checker)} (the simulator's privileged checker)")
+            continue
+        lines.append(
+            f"  {jid:<12} SR_real {_pct(d.get('sr_real'))}, SR_imag {_pct(d.get('sr_imag'))} over "
+            f"{d.get('pairs_both', 0)} pairs; agrees with the checker on {_pct(d.get('agreement_with_checker'))} "
+            "of real episodes"
+        )
+    return lines

@@ -22,6 +22,7 @@ from typing import Any
 
 from pilworld.config.rig import RigConfig
 from pilworld.data.episode import Episode
+from pilworld.data.judge_selection import write_selection
 from pilworld.data.outcomes import JudgeKind, read_outcomes, replace_judge_outcomes
 from pilworld.data.reader import EpisodeStore
 from pilworld.io.atomic import write_json
@@ -102,8 +103,12 @@ def apply_judge(
     *,
     workers: int | None = 1,
     progress: bool = False,
+    select_as: str | None = None,
 ) -> Applied:
-    """Judge every episode of ``run_dir`` with ``judge`` (resuming a pass of the same judge) and write the record."""
+    """Judge every episode of ``run_dir`` with ``judge`` (resuming a pass of the same judge) and write the record.
+
+    ``select_as``: also make ``learned`` the run's selected judge (:mod:`pilworld.data.judge_selection`), recording
+    this as who set it; None leaves the selection alone."""
     root = Path(run_dir)
     store = EpisodeStore(root)
     if store.num_episodes == 0:
@@ -136,4 +141,6 @@ def apply_judge(
     have = {o.episode_index for o in read_outcomes(root) if o.judge_id == LEARNED_ID}
     abstained = [i for i in range(store.num_episodes) if i not in have]
     write_json(root / RECORD, record | {"complete": True, "judged": len(have), "abstained": abstained})
+    if select_as is not None:
+        write_selection(root, [LEARNED_ID], select_as)
     return Applied(store.num_episodes, len(have), abstained, withdrawn, root / RECORD)

@@ -35,6 +35,16 @@ SUBTASKS = 6
 VERDICTS = ["y", "n", "n", "y", "y", "n"]  # the operator's, one per subtask
 
 
+# A deliberately unsure judge: 8 steps on 6 labels, abstaining on up to half (both paths get exercised).
+UNSURE = ("--steps", "8", "--abstain-budget", "0.5")
+
+
+def _train(pilot: Path, out: Path, *settings: str) -> int:
+    """``pilworld judge train`` on the pilot's operator verdicts, two folds, with ``settings``."""
+    return main(["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(out), "--rig", FAKE,
+                 "--folds", "2", *settings])  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def pilot(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Six paired subtasks on the fake rig; the operator sets up each scene (Enter) and says yes or no."""
@@ -60,9 +70,7 @@ def test_operator_verdicts_train_a_judge_that_judges_the_run_and_queues_the_rest
     assert len(said) == SUBTASKS and sorted(o.success for o in said) == sorted(v == "y" for v in VERDICTS)
 
     judge = tmp_path / "judge"
-    train = ["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
-             "--folds", "2", "--steps", "8", "--abstain-budget", "0.5", "--json"]  # fmt: skip
-    assert main(train) == 0
+    assert _train(pilot, judge, *UNSURE, "--json") == 0
     trained = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert trained["validation"]["episodes"] == SUBTASKS  # the operator's verdicts, real branch only
 
@@ -99,8 +107,7 @@ def test_imagined_rollouts_thereafter_are_judged_by_the_learned_judge(
     """``imagine --judge``: success by the learned judge (abstentions listed), hallucinations by the task-free
     detector in the same rows; the paper tasks' hand-written judge, which refuses this task, is not asked."""
     judge = tmp_path / "judge"
-    assert main(["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
-                 "--folds", "2", "--steps", "8", "--abstain-budget", "0.5"]) == 0  # fmt: skip
+    assert _train(pilot, judge, *UNSURE) == 0
     out = tmp_path / "imagined"
     argv = ["imagine", "--starts", str(pilot), "--task", str(TASK), "--checkpoints", "scripted_step_10k",
             "--out", str(out), "--judge", str(judge), "--judge-workers", "1", "--json"]  # fmt: skip
@@ -124,10 +131,9 @@ def test_apply_resumes_and_another_judge_replaces_the_verdicts(
     pilot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A second apply of the same judge changes nothing; another judge's verdicts replace the first's."""
-    base = ["--data", str(pilot), "--labels", "operator", "--rig", FAKE, "--folds", "2", "--steps", "4"]
     a, b = tmp_path / "a", tmp_path / "b"
-    assert main(["judge", "train", *base, "--out", str(a)]) == 0
-    assert main(["judge", "train", *base, "--seed", "1", "--out", str(b)]) == 0
+    assert _train(pilot, a, "--steps", "4") == 0
+    assert _train(pilot, b, "--steps", "4", "--seed", "1") == 0
     assert main(["judge", "apply", str(a), str(pilot), "--rig", FAKE, "--no-report"]) == 0
     first = {o.episode_index: o.success for o in read_outcomes(pilot) if o.judge_id == LEARNED_ID}
     assert main(["judge", "apply", str(a), str(pilot), "--rig", FAKE, "--no-report"]) == 0
@@ -145,8 +151,7 @@ def test_a_release_crop_judge_is_evaluated_with_the_rig(
 ) -> None:
     """``judge evaluate --rig`` hands the rig to a judge that reads where a gripper let go (kinematics, head camera)."""
     judge = tmp_path / "crop"
-    assert main(["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
-                 "--folds", "2", "--steps", "4", "--release-crop", "16"]) == 0  # fmt: skip
+    assert _train(pilot, judge, "--steps", "4", "--release-crop", "16") == 0
     capsys.readouterr()
     argv = ["judge", "evaluate", str(judge), "--data", str(pilot), "--labels", "operator", "--rig", FAKE, "--json"]
     assert main(argv) == 0
@@ -166,8 +171,7 @@ def test_paired_run_with_a_judge_is_judged_selected_and_reported(
 ) -> None:
     """``paired run --judge JUDGE``: the run judged by it when it ends (as ``judge apply``), SR and HFR from it."""
     judge = tmp_path / "judge"
-    assert main(["judge", "train", "--data", str(pilot), "--labels", "operator", "--out", str(judge), "--rig", FAKE,
-                 "--folds", "2", "--steps", "8", "--abstain-budget", "0.5"]) == 0  # fmt: skip
+    assert _train(pilot, judge, *UNSURE) == 0
     out = tmp_path / "run"
     argv = ["paired", "run", "--rig", FAKE, "--unattended", "--task", str(TASK), "--checkpoints",
             "scripted_step_05k", "--subtasks", "1", "--rounds", "1", "--seed", "77", "--out", str(out),
