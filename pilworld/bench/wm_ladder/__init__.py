@@ -58,7 +58,11 @@ from pilworld.bench.wm_ladder.settings import (
     TASKS,
     LadderConfig,
 )
-from pilworld.bench.wm_ladder.teacher_forced import teacher_forced_errors, teacher_forced_predictions
+from pilworld.bench.wm_ladder.teacher_forced import (
+    teacher_forced_episode,
+    teacher_forced_errors,
+    teacher_forced_predictions,
+)
 from pilworld.options.bounds import at_least_one
 from pilworld.options.parse import parse_list
 from pilworld.types import ChunkSpec
@@ -81,6 +85,7 @@ __all__ = [
     "load_ladder_model",
     "run_wm_ladder",
     "summary_lines",
+    "teacher_forced_episode",
     "teacher_forced_errors",
     "teacher_forced_predictions",
 ]
@@ -99,6 +104,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--checkpoints", default="", help="comma-separated scripted checkpoints (default: 3 quick / all 5)"
     )
     parser.add_argument("--rounds", type=int, default=None, help="closed-loop rounds per subtask (default 5)")
+    parser.add_argument(
+        "--judge",
+        default="",
+        help="learned judge folder that rungs 2 and 3 run beside the hand-written judge (default: the shipped one; "
+        "'none': only the hand-written)",
+    )
     parser.add_argument("--out", type=Path, default=None, help="cache folder, resumed (default bench_runs/wm_ladder)")
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's own)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
@@ -124,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         rungs=tuple(parse_list(args.rungs)) or RUNGS,
         spec=ChunkSpec() if args.rounds is None else ChunkSpec(rounds=args.rounds),
         out=str(args.out or DEFAULT_OUT),
+        judge=args.judge,
     )
     r = run_wm_ladder(cfg, progress=not args.no_progress)
     return emit(args, r, summary_lines(r))

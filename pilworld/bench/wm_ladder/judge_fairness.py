@@ -1,4 +1,9 @@
-"""Rung 2, judge fairness: the plain real episodes judged again after each degradation, with one injected fault."""
+"""Rung 2, judge fairness: the plain real episodes judged again after each degradation, with one injected fault.
+
+Judged by the hand-written reference judge and, beside it, the learned judge of the settings (the shipped one
+by default): a fair judge's agreement with the checker does not drop on frames that are degraded but right
+(docs/judges.md, "Fairness").
+"""
 
 from __future__ import annotations
 
@@ -11,7 +16,15 @@ from pilworld.bench.wm_ladder.degrade import degrade_episode
 from pilworld.bench.wm_ladder.lab import Lab
 from pilworld.bench.wm_ladder.model import FrameAutoencoder, autoencoder_for
 from pilworld.bench.wm_ladder.settings import DEGRADATIONS
-from pilworld.bench.wm_ladder.stats import frame_mse, judge_summary, judgement, mean_ci, psnr
+from pilworld.bench.wm_ladder.stats import (
+    frame_mse,
+    judge_summary,
+    judgement,
+    learned_judgement,
+    learned_summary,
+    mean_ci,
+    psnr,
+)
 from pilworld.paired.runner import PairedSubtask
 
 
@@ -34,6 +47,8 @@ def judge_fairness_record(
         noise = np.random.default_rng([lab.cfg.seed0, index, 17])
         degraded = degrade_episode(ep, d, autoencode=ae if isinstance(ae, FrameAutoencoder) else None, rng=noise)
         row: dict[str, Any] = judgement(judge.judge(degraded, ctx))
+        if lab.learned is not None:
+            row["learned"] = learned_judgement(lab.learned.judge(degraded, ctx))
         row["mse"] = {v: frame_mse(degraded.images[v], ep.images[v]) for v in ep.images}
         case = inject_random(fault, degraded, lab.rig_cfg, np.random.default_rng([lab.cfg.seed0, index, 21]))
         if case is None:
@@ -60,6 +75,10 @@ def judge_fairness_summary(
         counts = {o: outcomes.count(o) for o in ("detected", "early", "late", "missed", "skipped")}
         recall = mean_ci([o == "detected" for o in outcomes if o != "skipped"])
         views = list(rows[0][1]["mse"]) if rows else []
+        learned = [(t, j["learned"]) for t, j in rows if "learned" in j]
+        if learned and len(learned) == len(rows):
+            plain = [r["plain"]["learned"] for _, r in records] if d != "plain" and "plain" in degradations else None
+            out.setdefault("learned", {})[d] = learned_summary(learned, plain)
         out[d] = {
             **judge_summary(rows),
             "fault_recall": recall["rate"],

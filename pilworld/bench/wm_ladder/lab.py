@@ -67,6 +67,14 @@ class Lab:
         self._policies: dict[str, Any] = {}
         self._models: dict[str, tuple[WorldModel, str | None, bool]] = {}
         self.real_runs = 0
+        self.learned: Any = None  # the learned judge of rungs 2 and 3 (LearnedSuccessJudge), None = none
+        self.judge_key = "none"
+        if cfg.judge_path is not None:
+            from pilworld.judges.learned.apply import judge_digest
+            from pilworld.judges.learned.judge import LearnedSuccessJudge
+
+            self.learned = LearnedSuccessJudge(cfg.judge_path)  # a bad folder fails before anything runs
+            self.judge_key = judge_digest(self.learned.folder)
 
     # -- resources, made on first use
 

@@ -72,15 +72,18 @@ def run_wm_ladder(cfg: LadderConfig, *, progress: bool = True) -> dict[str, Any]
                 degr = [d for d in DEGRADATIONS if d != "autoencoded" or isinstance(ae, FrameAutoencoder)]
                 if isinstance(ae, str):
                     result["skipped"]["judge_fairness.autoencoded"] = ae
-                key = {"model": lab.model_key if isinstance(ae, FrameAutoencoder) else lab.real_key, "d": degr}
+                key = {
+                    "model": lab.model_key if isinstance(ae, FrameAutoencoder) else lab.real_key,
+                    "d": degr,
+                    "judge": lab.judge_key,
+                }
                 recs = each_pair(lab, rung, key, plan, partial(judge_fairness_record, lab, degradations=degr), progress)
                 result[rung] = judge_fairness_summary(recs, degr)
                 if isinstance(ae, str):
                     result[rung]["autoencoded"] = None
             elif rung == "teacher_forced":
-                recs = each_pair(
-                    lab, rung, {"model": lab.model_key}, plan, lambda p, i: teacher_forced_record(lab, p, i), progress
-                )
+                key = {"model": lab.model_key, "judge": lab.judge_key}
+                recs = each_pair(lab, rung, key, plan, lambda p, i: teacher_forced_record(lab, p, i), progress)
                 result[rung] = teacher_forced_summary(recs, views)
             result[rung]["seeds"] = result["seeds"]["layout_seeds"]
             result[rung]["real_branches_run"] = lab.real_runs - runs0

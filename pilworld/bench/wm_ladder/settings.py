@@ -44,6 +44,7 @@ class LadderConfig:
     spec: ChunkSpec = field(default_factory=ChunkSpec)
     seed0: int = LADDER_SEED0
     out: str = str(DEFAULT_OUT)
+    judge: str = ""  # a learned judge folder beside the hand-written one; "" = the shipped one, "none" = none
 
     def __post_init__(self) -> None:
         s = self.subtasks
@@ -64,6 +65,15 @@ class LadderConfig:
             bad = [c for c in self.checkpoints if c not in names]
             if bad or not self.checkpoints:
                 raise ValueError(f"checkpoints: unknown scripted checkpoint(s) {bad or []} (known: {', '.join(names)})")
+
+    @property
+    def judge_path(self) -> Path | None:
+        """The learned judge that rungs 2 and 3 run beside the hand-written one (None: only the hand-written)."""
+        if self.judge == "none":
+            return None
+        from pilworld.judges.learned.shipped import SHIPPED_JUDGE
+
+        return Path(self.judge) if self.judge else SHIPPED_JUDGE
 
     @property
     def model_path(self) -> Path:

@@ -106,3 +106,37 @@ def judge_summary(rows: Sequence[tuple[bool, dict[str, Any]]]) -> dict[str, Any]
         "hallucination_fp_ci95": fp["ci95"],
         "fp_categories": categories,
     }
+
+
+def learned_judgement(verdict: Any) -> dict[str, Any]:
+    """A learned judge's verdict: success True / False, or None where it abstained."""
+    return {"success": verdict.success, "reason": verdict.reason}
+
+
+def learned_summary(
+    rows: Sequence[tuple[bool, dict[str, Any]]], plain: Sequence[dict[str, Any]] | None = None
+) -> dict[str, Any]:
+    """Agreement of a learned judge with the checker on the episodes it judged (abstentions counted apart),
+    and, given the same episodes' ``plain`` verdicts, the drop from them on the episodes judged in both."""
+    judged = [(t, j) for t, j in rows if j["success"] is not None]
+    agree = mean_ci([bool(j["success"]) == t for t, j in judged])
+    out: dict[str, Any] = {
+        "n": len(rows),
+        "judged": len(judged),
+        "abstained": len(rows) - len(judged),
+        "agreement": agree["rate"],
+        "agreement_ci95": agree["ci95"],
+    }
+    if plain is not None:
+        both = [
+            (t, j, p)
+            for (t, j), p in zip(rows, plain, strict=True)
+            if j["success"] is not None and p["success"] is not None
+        ]
+        if both:
+            here = float(np.mean([bool(j["success"]) == t for t, j, _ in both]))
+            base = float(np.mean([bool(p["success"]) == t for t, _, p in both]))
+            out["both_judged"] = len(both)
+            out["agreement_drop_points"] = round(100 * (base - here), 2)
+            out["verdicts_changed"] = sum(bool(j["success"]) != bool(p["success"]) for _, j, p in both)
+    return out

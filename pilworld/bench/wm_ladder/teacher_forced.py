@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -10,7 +11,8 @@ import numpy as np
 from pilworld.bench.wm_ladder.lab import Lab
 from pilworld.bench.wm_ladder.model import SeedShifted
 from pilworld.bench.wm_ladder.settings import HEAD, Frames
-from pilworld.bench.wm_ladder.stats import frame_mse, psnr
+from pilworld.bench.wm_ladder.stats import frame_mse, judge_summary, judgement, learned_judgement, learned_summary, psnr
+from pilworld.data.episode import Episode
 from pilworld.paired.runner import PairedSubtask
 from pilworld.rollout import Rollout
 from pilworld.types import ChunkSpec, Observation, Segment, Start
@@ -63,21 +65,67 @@ def teacher_forced_predictions(
 
 
 def teacher_forced_record(lab: Lab, pair: PairedSubtask, index: int) -> dict[str, Any]:
-    rollout, _ = lab.real(pair)
+    """The round errors of :func:`teacher_forced_errors` and, under ``judges``, the success verdicts of the
+    hand-written judge and the learned one on the real episode and on its teacher-forced re-render (every
+    frame after the start replaced by the model's prediction from the real frames before it): what the
+    world model's faithful-but-imperfect frames do to a judge (docs/judges.md, "Fairness")."""
+    from pilworld.judges.vision import VisionJudge
+
+    rollout, real_ok = lab.real(pair)
     model, _, _ = lab.model(pair.subtask.task)
-    return teacher_forced_errors(model, lab.gamma, lab.spec, rollout, pair.seed, lab.rig_cfg.control_rate_hz)
+    frames: dict[str, list[Frames]] = {}
+    rec: dict[str, Any] = teacher_forced_errors(
+        model, lab.gamma, lab.spec, rollout, pair.seed, lab.rig_cfg.control_rate_hz, frames=frames
+    )
+    ep = lab.episode(pair, rollout)
+    forced = teacher_forced_episode(ep, frames)
+    ctx = lab.context(pair.subtask.task)
+    reference = VisionJudge()
+    judges: dict[str, Any] = {
+        "real": real_ok,
+        "reference": {k: judgement(reference.judge(e, ctx)) for k, e in (("plain", ep), ("teacher_forced", forced))},
+    }
+    if lab.learned is not None:
+        judges["learned"] = {
+            k: learned_judgement(lab.learned.judge(e, ctx)) for k, e in (("plain", ep), ("teacher_forced", forced))
+        }
+    rec["judges"] = judges
+    return rec
+
+
+def teacher_forced_episode(ep: Episode, frames: dict[str, list[Frames]]) -> Episode:
+    """``ep`` with every frame after the start replaced by the teacher-forced predictions, round after round."""
+    images = {}
+    for v, real in ep.images.items():
+        predicted = np.concatenate(frames[v]) if frames.get(v) else np.zeros((0, *real.shape[1:]), np.uint8)
+        if 1 + predicted.shape[0] != real.shape[0]:
+            raise ValueError(f"teacher-forced {v}: {predicted.shape[0]} frames predicted for {real.shape[0] - 1}")
+        images[v] = np.concatenate([real[:1], predicted.astype(np.uint8)])
+    return dataclasses.replace(ep, images=images, origin="imagined")
 
 
 def teacher_forced_errors(
-    model: WorldModel, gamma: Any, spec: ChunkSpec, rollout: Rollout, seed: int, rate_hz: float
+    model: WorldModel,
+    gamma: Any,
+    spec: ChunkSpec,
+    rollout: Rollout,
+    seed: int,
+    rate_hz: float,
+    *,
+    frames: dict[str, list[Frames]] | None = None,
 ) -> dict[str, Any]:
-    """Per round and view, the MSE (levels², over the round's K frames) of teacher-forced, free and frozen."""
+    """Per round and view, the MSE (levels², over the round's K frames) of teacher-forced, free and frozen.
+
+    ``frames``, when given, receives each view's teacher-forced predictions round after round."""
     seq = rollout.observations
     views = list(seq[0].views)
     out: dict[str, list[dict[str, float]]] = {"teacher_forced": [], "free": [], "frozen": [], "frozen_start": []}
     at = 0
     for r, tf, free in teacher_forced_predictions(model, gamma, spec, rollout, seed, rate_hz):
         n = len(rollout.segments[r].observations)
+        if frames is not None:
+            for v in views:
+                frames.setdefault(v, []).append(tf[v])
         real = {v: np.stack([np.asarray(o.images[v]) for o in seq[at + 1 : at + 1 + n]]) for v in views}
         held = {v: np.repeat(np.asarray(seq[at].images[v])[None], n, axis=0) for v in views}
         first = {v: np.repeat(np.asarray(seq[0].images[v])[None], n, axis=0) for v in views}
@@ -117,4 +165,26 @@ def teacher_forced_summary(
         "rounds": rows,
         "head": per_view.get(HEAD, {}),
         "all_views": per_view["all"],
+        "judges": _judges_summary([r["judges"] for _, r in records if "judges" in r]),
     }
+
+
+def _judges_summary(recs: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
+    """Each judge's agreement with the checker on the real episodes and on their teacher-forced re-renders."""
+    if not recs:
+        return None
+    out: dict[str, Any] = {"n": len(recs)}
+    truth = [bool(r["real"]) for r in recs]
+    out["reference"] = {
+        k: judge_summary(list(zip(truth, [r["reference"][k] for r in recs], strict=True)))
+        for k in ("plain", "teacher_forced")
+    }
+    if all("learned" in r for r in recs):
+        plain = [r["learned"]["plain"] for r in recs]
+        out["learned"] = {
+            "plain": learned_summary(list(zip(truth, plain, strict=True))),
+            "teacher_forced": learned_summary(
+                list(zip(truth, [r["learned"]["teacher_forced"] for r in recs], strict=True)), plain
+            ),
+        }
+    return out

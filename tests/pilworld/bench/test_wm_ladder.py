@@ -6,6 +6,7 @@ one task, one checkpoint, one subtask, two rounds.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 from typing import Any
@@ -206,6 +207,39 @@ def test_degradations_change_images_only() -> None:
         wl.degrade_episode(ep, "sharpen")
 
 
+def test_teacher_forced_episode_keeps_the_start_and_takes_the_predictions() -> None:
+    from pilworld.data.episode import Episode
+
+    ep = Episode(
+        images={v: np.zeros((5, 8, 8, 3), dtype=np.uint8) for v in VIEWS},
+        state=np.zeros((5, 14), dtype=np.float32),
+        action=np.zeros((5, 14), dtype=np.float32),
+        task="stack the bowls",
+    )
+    frames = {v: [np.full((2, 8, 8, 3), 1, np.uint8), np.full((2, 8, 8, 3), 2, np.uint8)] for v in VIEWS}
+    forced = wl.teacher_forced_episode(ep, frames)
+    for v in VIEWS:
+        assert forced.images[v][:, 0, 0, 0].tolist() == [0, 1, 1, 2, 2]
+    assert forced.state is ep.state and forced.origin == "imagined"
+    with pytest.raises(ValueError, match="4 frames predicted for 5"):
+        wl.teacher_forced_episode(
+            dataclasses.replace(ep, images={v: np.zeros((6, 8, 8, 3), np.uint8) for v in VIEWS}), frames
+        )
+
+
+def test_a_learned_judges_drop_is_counted_on_episodes_judged_both_ways() -> None:
+    from pilworld.bench.wm_ladder.stats import learned_summary
+
+    truth = [True, True, False, False]
+    plain = [{"success": True}, {"success": True}, {"success": False}, {"success": None}]
+    degraded = [{"success": True}, {"success": False}, {"success": False}, {"success": False}]
+    s = learned_summary(list(zip(truth, degraded, strict=True)), plain)
+    assert (s["n"], s["judged"], s["abstained"]) == (4, 4, 0)
+    assert s["agreement"] == 0.75
+    assert s["both_judged"] == 3 and s["verdicts_changed"] == 1
+    assert s["agreement_drop_points"] == round(100 * (1.0 - 2 / 3), 2)
+
+
 def _run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, dict[str, Any] | None, str]:
     code = main(args)
     out = capsys.readouterr()
@@ -240,7 +274,14 @@ def test_cli_json_and_resume(tiny_dir: Path, tmp_path: Path, capsys: pytest.Capt
         assert {"agreement", "hallucination_fp_rate", "fault_recall", "fault_outcomes"} <= set(jf[d])
         assert sum(jf[d]["fault_outcomes"].values()) == 1
     assert jf["plain"]["psnr_vs_plain"]["cam_high"] == 100.0  # the undegraded copy is bit-identical
+    learned = jf["learned"]  # the shipped learned judge beside the hand-written one, on the same frames
+    assert set(learned) == set(wl.DEGRADATIONS)
+    for d in wl.DEGRADATIONS:
+        assert learned[d]["n"] == 1 and learned[d]["judged"] + learned[d]["abstained"] == 1
     tf = r["teacher_forced"]
+    j = tf["judges"]
+    assert j["n"] == 1 and set(j["reference"]) == set(j["learned"]) == {"plain", "teacher_forced"}
+    assert j["learned"]["teacher_forced"]["n"] == 1
     assert [row["round"] for row in tf["rounds"]] == [1, 2]
     first = tf["rounds"][0]
     assert first["teacher_forced"] == first["free"] and first["compounding_db"] == 0.0
@@ -264,6 +305,7 @@ def test_bad_input_is_one_line(tiny_dir: Path, tmp_path: Path, capsys: pytest.Ca
         (["--model", str(tmp_path)], "config.json missing"),
         (["--rungs", "state_contract,flying"], "rungs:"),
         (["--tasks", "juggle"], "tasks:"),
+        (["--judge", str(tmp_path / "no_judge")], "no such judge folder"),
     ):
         code, _, err = _run_cli(base + extra, capsys)
         assert code == 2, extra
