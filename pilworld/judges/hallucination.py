@@ -39,6 +39,7 @@ from pilworld.judges.hallucination_checks import (
     Finding,
     HeadScene,
     Thresholds,
+    arm_visibility,
     check_arms,
     check_objects,
     check_views,
@@ -46,12 +47,16 @@ from pilworld.judges.hallucination_checks import (
 from pilworld.judges.hallucination_scene import (
     REFERENCE_WIDTH,
     ArmShape,
+    background_table,
     colourful_mask,
     dilate,
+    learn_background,
     learn_table,
     object_labels,
     predict_arms,
-    table_mask,
+    shadow_like,
+    shadow_tint,
+    smooth,
 )
 from pilworld.judges.hallucination_wrist import check_wrist_objects
 from pilworld.perception.objects import discover_colours_over
@@ -77,18 +82,33 @@ def head_scene(
     # The objects' colours, found in every frame away from the predicted arms (an arm often hides an object
     # for all but a few frames; one missed colour is one object never tracked): no task knowledge.
     classes = discover_colours_over(images, exclude=np.stack([dilate(a, 2) for a in arms.whole]), samples=len(images))
-    labels = object_labels(images, classes, (thresholds or Thresholds()).faded_saturation)
-    # The table's colour from the start frame (real in both branches), away from arms and objects.
+    th = thresholds or Thresholds()
+    labels = object_labels(images, classes, th.faded_saturation)
+    colourful = colourful_mask(images)
+    scale = cam.width / REFERENCE_WIDTH
+    # The table's colour from the start frame (real in both branches), away from arms and objects: the
+    # rule for pixels the empty scene below never shows.
     table = learn_table(images[0], dilate(arms.whole[0], 3) | dilate(labels[0] > 0, 2))
+    # The empty scene, pixel by pixel, from the frames where nothing covers each pixel: a textured table,
+    # its shading and a tinted light are explained where one table colour is not (the varied look).
+    blurred = smooth(images, th.background_blur_px * scale)
+    objects = (labels > 0) | colourful
+    background = learn_background(blurred, arms.whole, objects, th.background_margin_px * scale)
+    shadows = shadow_tint(blurred, background, arms.whole, objects, th.background_margin_px * scale)
+    explained = background_table(blurred, background, images, table, max_difference=th.background_difference)
     return HeadScene(
         images=images,
         labels=labels,
-        table=table_mask(images, table),
+        table=explained,
+        arm_visibility=arm_visibility(explained, arms.distal, 20 * scale * scale),
+        shadow=shadow_like(
+            blurred, background, shadows, max_distance=th.shadow_tint_distance, ratio_factor=th.shadow_ratio_factor
+        ),
         arms=arms,
         classes=classes,
-        scale=cam.width / REFERENCE_WIDTH,
+        scale=scale,
         grip=rig.kinematics.gripper_openings(episode.state),
-        colourful=colourful_mask(images),
+        colourful=colourful,
     )
 
 

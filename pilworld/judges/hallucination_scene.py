@@ -10,14 +10,17 @@ it tells "the arm is there" from "the arm is not there" on every frame of every 
 (measured recall of the drawn forearm-to-gripper silhouette on observed arm pixels: ≥ 0.77, median
 0.96, over 9,120 arm-frames of the simulated training set).
 
-Why colour rules for "arm pixels": the scene is a warm beige table under a white light, grey arms,
-dark grippers and saturated objects (see ``simrig/scene.py``). A pixel is *table* when its
-chromaticity is close to the table's (learnt from the episode's start frame, outside the predicted
-arms and the objects) and it is not much darker than the table; *object* when
-:func:`pilworld.perception.colour.segment` gives it a class; *arm-like* otherwise. Static dark
-fixtures (slot outlines, the stacking mark, the table edge) are arm-like too; checks that need to
-ignore them subtract the episode's static background (arm-like pixels far from any predicted arm in
-most frames).
+Why the empty scene for "arm pixels": a pixel is *table* when it is what the episode's empty scene
+shows there (:class:`Background`: learnt pixel by pixel from the start frame and the first frames where
+no arm is drawn near a pixel and no object is on it, so textures, shading and a tinted light are
+explained where one table colour is not — the varied look's wood and laminate tables), *shadow* when it
+is that scene darker or lighter by the episode's own shadow tint (:func:`shadow_tint`), *object* when
+:func:`pilworld.perception.colour.segment` gives it a class, and *arm-like* otherwise. Where no frame
+shows a pixel empty, one table colour learnt from the start frame decides (``learn_table``; the flat
+look's beige table under a white light), and under an arm that never moves nothing does. Where arm and
+table are the same grey the image cannot tell them apart; ``arm_visibility`` (hallucination_checks.py)
+measures how well it can, per episode, and the checks lean on the drawn arm where it cannot. Static
+dark fixtures (slot outlines, the stacking mark, the table edge) are part of the empty scene.
 
 Pixel lengths and areas below are tuned at 128×128 and scale with the image width.
 """
@@ -213,6 +216,149 @@ def table_mask(images: Image, table: TableColour, *, max_chroma_distance: float 
     ref = np.asarray(table.chroma, dtype=np.float32)
     dist = channel_max(np.abs(im / s[..., None] - ref))
     out: Mask = (dist <= max_chroma_distance) & (channel_max(im) >= 0.55 * table.value)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Background:
+    """The empty scene in the head view, learnt from the episode itself (what no arm and no object covers).
+
+    ``image`` is the start frame where it shows the scene empty, elsewhere each pixel's median over the
+    first few frames where no arm is predicted near it and no object is seen on it (blurred, float):
+    textures, shading and fixed shadows included, so a textured table under
+    a tinted light is explained pixel by pixel where one table colour cannot be. ``known``: pixels seen
+    empty in at least a few frames; ``arm_free``: pixels some frames show without an arm (an idle arm's
+    pixels never are, and say nothing about the table there).
+    """
+
+    image: NDArray[np.float32]  # (H, W, 3)
+    known: Mask  # (H, W)
+    arm_free: Mask  # (H, W)
+
+
+BACKGROUND_MIN_FREE = 3  # frames a pixel must be seen empty in before its background counts as known
+BACKGROUND_MAX_FRAMES = 48  # frames sampled for the median (memory and time at larger images)
+
+
+def smooth(images: NDArray[np.uint8], sigma_px: float) -> NDArray[np.float32]:
+    """Gaussian blur of every frame ``(..., H, W, 3)`` as float: camera noise and compression out of comparisons."""
+    flat = images.reshape((-1, *images.shape[-3:]))
+    out = np.stack([cv2.GaussianBlur(f.astype(np.float32), (0, 0), sigmaX=sigma_px) for f in flat])
+    return out.reshape(images.shape).astype(np.float32)
+
+
+def learn_background(
+    blurred: NDArray[np.float32], arms: NDArray[np.uint8], objects: Mask, margin_px: float
+) -> Background:
+    """:class:`Background` of ``blurred`` frames ``(T, H, W, 3)``, arms ``(T, H, W)`` predicted, objects seen."""
+    T = blurred.shape[0]
+    pick = np.unique(np.linspace(0, T - 1, min(T, BACKGROUND_MAX_FRAMES)).round().astype(int))
+    no_arm = np.stack([~dilate(arms[t], margin_px) for t in pick])
+    free = no_arm & ~np.stack([dilate(objects[t], margin_px) for t in pick])
+    # The earliest frames that show a pixel empty: the start is real in both branches, and a later stretch
+    # of wrong frames (a swapped view, a world model's drift) must not become the "empty scene".
+    known = free.sum(axis=0) >= BACKGROUND_MIN_FREE
+    first = np.argsort(~free, axis=0, kind="stable")[:BACKGROUND_MIN_FREE]  # (3, H, W): free frames first, in order
+    values = np.take_along_axis(blurred[pick], first[..., None], axis=0)  # (3, H, W, 3)
+    image = np.median(values, axis=0).astype(np.float32)
+    image[~known] = 0.0
+    # Where the start frame itself shows the scene empty, it is the background.
+    start = free[0] if pick[0] == 0 else np.zeros(known.shape, bool)
+    image[start] = blurred[0][start]
+    known |= start
+    return Background(image=image, known=known, arm_free=(no_arm.sum(axis=0) >= BACKGROUND_MIN_FREE) | start)
+
+
+def background_table(
+    blurred: NDArray[np.float32],
+    background: Background,
+    images: Image,
+    table: TableColour,
+    *,
+    max_difference: float,
+) -> Mask:
+    """``(T, H, W)`` pixels the empty scene explains: within ``max_difference`` levels (any channel) of the
+    background where it is known; where only objects ever covered a pixel, one table colour (``table``, see
+    :func:`table_mask`) of ``images``; where an arm always was, never (nothing says what is under it)."""
+    out: Mask = channel_max(np.abs(blurred - background.image[None])) <= max_difference
+    out[:, ~background.known] = False
+    fallback = ~background.known & background.arm_free
+    if fallback.any():
+        out[:, fallback] = table_mask(images[:, fallback], table)
+    return out
+
+
+def _ratio_chroma(blurred: NDArray[np.float32], image: NDArray[np.float32]) -> tuple[NDArray[Any], NDArray[Any]]:
+    """Per pixel, the chromaticity of the per-channel ratio frame / empty scene (of its inverse where the
+    frame is brighter) and the brightness ratio. A shadow scales every channel by the light it takes
+    away, so within one episode all shadows share one ratio chromaticity: the tint of what light is left."""
+    q = (blurred + 2.0) / (image + 2.0)
+    bright = q.mean(axis=-1)
+    q = np.where((bright > 1.0)[..., None], 1.0 / q, q)
+    return q / q.sum(axis=-1, keepdims=True), bright
+
+
+# The share of empty pixel-frames darkened before a scene counts as shadowed (flat look: ≤ 0.0001, varied: ≥ 0.002).
+SHADOW_MIN_SHARE = 0.001
+
+
+@dataclass(frozen=True)
+class Shadows:
+    """What this episode's cast shadows do to the empty scene: the ratio chromaticity they share (the tint of
+    the light left in them, see :func:`_ratio_chroma`) and their typical brightness ratio (the light left:
+    on a flat table nearly the same everywhere, 0.5–0.6 on the varied look)."""
+
+    tint: NDArray[np.float64]  # (3,)
+    ratio: float
+
+
+def shadow_tint(
+    blurred: NDArray[np.float32], background: Background, arms: NDArray[np.uint8], objects: Mask, margin_px: float
+) -> Shadows | None:
+    """This episode's :class:`Shadows`: medians over the pixels away from arms and objects that are darker
+    than the empty scene; None where there are too few (a scene without cast shadows, such as the flat look)."""
+    chromas, ratios = [], []
+    empty = 0
+    for t in range(0, blurred.shape[0], 2):
+        chroma, bright = _ratio_chroma(blurred[t], background.image)
+        free = background.known & ~dilate(arms[t], margin_px) & ~dilate(objects[t], margin_px)
+        dark = free & (bright >= 0.2) & (bright <= 0.85)
+        chromas.append(chroma[dark])
+        ratios.append(bright[dark])
+        empty += int(free.sum())
+    found = np.concatenate(chromas) if chromas else np.zeros((0, 3))
+    if found.shape[0] < max(SHADOW_MIN_SHARE * empty, 50):
+        return None
+    return Shadows(
+        tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(np.concatenate(ratios)))
+    )
+
+
+def shadow_like(
+    blurred: NDArray[np.float32],
+    background: Background,
+    shadows: Shadows | None,
+    *,
+    max_distance: float,
+    ratio_factor: float,
+) -> Mask:
+    """``(T, H, W)`` pixels that are the empty scene in a shadow cast or lifted: the ratio chromaticity
+    within ``max_distance`` of the shadows' tint, the brightness scaled by the shadows' ratio (or its
+    inverse, a shadow lifted) to within a factor ``ratio_factor``.
+
+    A moving arm's shadow falls outside its drawn silhouette and is no arm. On the varied look a shadow lies
+    ~0.01 from the tint (up to ~0.023 where two lights overlap) and a grey arm over wood 0.03–0.045; over a
+    grey laminate an arm has the shadows' chromaticity, and only the brightness band tells them apart (about
+    a third of such arm pixels fall in it)."""
+    out = np.zeros(blurred.shape[:3], bool)
+    if shadows is None:
+        return out  # no cast shadows in this scene: nothing to excuse
+    lo, hi = shadows.ratio / ratio_factor, min(shadows.ratio * ratio_factor, 0.97)
+    chroma, bright = _ratio_chroma(blurred, background.image[None])
+    close = channel_max(np.abs(chroma - shadows.tint.astype(np.float32))) <= max_distance
+    cast = (bright >= lo) & (bright <= hi)
+    lifted = (bright >= 1.0 / hi) & (bright <= 1.0 / lo)
+    out[:] = background.known[None] & close & (cast | lifted)
     return out
 
 

@@ -139,3 +139,31 @@ def test_acceptance_on_fresh_seeds(tmp_path: Path) -> None:
         assert stats["n"] >= 30, fault
         assert stats["detection_rate"] >= 0.90, (fault, stats)
     assert report["clean"]["false_positive_rate"] <= 0.10
+
+
+@pytest.mark.slow  # two varied-look subtasks simulated (~40 s): shadow-casting light, textured table
+def test_the_varied_look_is_explained_by_the_empty_scene(tmp_path: Path, rig: RigConfig) -> None:
+    """Under the varied look (a textured table, a tinted shadow-casting light) clean episodes are not flagged
+    (docs/judges.md: with one table colour the detector flagged 48 of 50 such episodes as arm motion; the
+    bench there has every fault's recall on that look)."""
+    from pilworld.collection.collect import collect
+    from pilworld.data.reader import EpisodeStore
+
+    root = tmp_path / "varied"
+    collect(
+        root,
+        rig_path=str(SIM),
+        tasks=["stack_blocks"],
+        checkpoints=["scripted_step_30k"],
+        episodes=1,
+        seed0=4_300_000,
+        workers=1,
+        progress=False,
+        appearance="varied",
+    )
+    store = EpisodeStore(root)
+    assert store.num_episodes == 2
+    for i in range(store.num_episodes):
+        ep = store.load(i)
+        v = _judge(ep, rig)
+        assert v.first_hallucination_frame is None, v.reason

@@ -1,0 +1,94 @@
+"""The detector's empty-scene model: learnt per pixel from the frames where nothing covers a pixel, it explains
+a textured table and shadows where one table colour cannot, and says nothing under an arm that never moves."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pilworld.judges.hallucination_scene import (
+    TableColour,
+    background_table,
+    learn_background,
+    shadow_like,
+    shadow_tint,
+    smooth,
+    table_mask,
+)
+
+T, H, W = 12, 32, 48
+
+
+def _scene() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A wood-grain-like grey table, an arm (flat grey bar) sweeping left to right, an idle arm at the right edge."""
+    rng = np.random.default_rng(0)
+    u = np.arange(W)[None, :]
+    v = np.arange(H)[:, None]
+    grain = 150 + 25 * np.sin(u / 3.0 + 0.4 * np.sin(v / 5.0)) + rng.normal(0, 2, (H, W))
+    table = np.clip(np.stack([grain * 1.0, grain * 0.96, grain * 0.88], axis=-1), 0, 255)
+    images = np.repeat(table[None], T, axis=0)
+    arms = np.zeros((T, H, W), np.uint8)
+    for t in range(T):
+        x0 = 2 + 3 * t
+        arms[t, 10:20, x0 : x0 + 6] = 1  # the moving arm, drawn where the state puts it
+        arms[t, :, W - 5 :] = 1  # the idle arm: never moves, so its pixels are never seen empty
+        images[t, 10:20, x0 : x0 + 6] = (148, 150, 155)  # a grey arm as bright as the table
+        images[t, :, W - 5 :] = (60, 62, 66)
+    return images.astype(np.uint8), arms, np.zeros((T, H, W), bool)
+
+
+def test_the_empty_scene_is_learnt_where_nothing_covers_it_and_unknown_under_an_idle_arm() -> None:
+    images, arms, objects = _scene()
+    blurred = smooth(images, 0.5)
+    bg = learn_background(blurred, arms, objects, margin_px=1)
+    assert bg.known[:, :30].all()  # the swept band is empty in most frames
+    assert not bg.known[:, W - 3 :].any() and not bg.arm_free[:, W - 3 :].any()
+    # the learnt image is the table, not the arm that passed over it
+    assert np.abs(bg.image[12:18, 10:20] - blurred[0, 12:18, 10:20]).max() < 6
+
+
+def test_the_arm_is_not_table_and_the_textured_table_is() -> None:
+    images, arms, objects = _scene()
+    blurred = smooth(images, 0.5)
+    bg = learn_background(blurred, arms, objects, margin_px=1)
+    # one table colour, the arm's own, would call everything table
+    colour = TableColour((0.329, 0.333, 0.338), 150.0)
+    assert table_mask(images[:1, 10:20, 2:8], colour).all()
+    table = background_table(blurred, bg, images, colour, max_difference=10.0)
+    t = 5
+    inner = np.zeros((H, W), bool)
+    inner[11:19, 3 + 3 * t : 3 + 3 * t + 4] = True
+    assert not table[t][inner].any()  # the arm differs from the table under it, though as bright
+    free = ~np.pad(arms[t].astype(bool), 2)[2:-2, 2:-2] & bg.known
+    free[10:20] = False
+    assert table[t][free].mean() > 0.98
+    assert not table[:, :, W - 3 :].any()  # under the idle arm: no evidence of table, whatever the colour rule says
+
+
+def test_a_shadow_is_the_table_darker_and_a_differently_coloured_thing_is_not() -> None:
+    images, arms, objects = _scene()
+    shadowed = images.copy().astype(np.float64)
+    tint = np.array([0.95, 1.0, 1.1])  # what the ambient light left is bluer than the key light
+    for t in range(1, T):
+        x0 = 3 * t  # each frame the arm's shadow falls to the left of it, tinted
+        shadowed[t, 22:30, max(x0 - 2, 0) : x0 + 6] *= 0.5 * tint
+    shadowed[6, 2:7, 30:36] = (40, 90, 160)  # something blue
+    blurred = smooth(np.clip(shadowed, 0, 255).astype(np.uint8), 0.5)
+    bg = learn_background(blurred, arms, objects, margin_px=1)
+    found = shadow_tint(blurred, bg, arms, objects, margin_px=1)
+    assert found is not None
+    assert np.abs(found.tint - tint / tint.sum()).max() < 0.01
+    assert abs(found.ratio - 0.5 * tint.mean()) < 0.03
+    shadow = shadow_like(blurred, bg, found, max_distance=0.02, ratio_factor=1.35)
+    assert shadow[6, 23:29, 17:23].mean() > 0.95
+    assert not shadow[6, 3:6, 31:35].any()
+    grey = blurred.copy()
+    grey[6, 2:8, 10:16] *= 0.9 * tint / tint.mean()  # the shadows' tint but hardly darker: not a shadow of this light
+    assert not shadow_like(grey, bg, found, max_distance=0.02, ratio_factor=1.35)[6, 3:7, 11:15].any()
+    assert not shadow_like(blurred, bg, None, max_distance=0.02, ratio_factor=1.35).any()  # no shadows learnt
+
+
+def test_a_scene_without_cast_shadows_has_no_tint() -> None:
+    images, arms, objects = _scene()
+    blurred = smooth(images, 0.5)
+    bg = learn_background(blurred, arms, objects, margin_px=1)
+    assert shadow_tint(blurred, bg, arms, objects, margin_px=1) is None
