@@ -57,6 +57,7 @@ from pilworld.judges.hallucination_scene import (
     shadow_like,
     shadow_tint,
     smooth,
+    table_mask,
 )
 from pilworld.judges.hallucination_wrist import check_wrist_objects
 from pilworld.perception.objects import discover_colours_over
@@ -95,12 +96,14 @@ def head_scene(
     objects = (labels > 0) | colourful
     background = learn_background(blurred, arms.whole, objects, th.background_margin_px * scale)
     shadows = shadow_tint(blurred, background, arms.whole, objects, th.background_margin_px * scale)
-    explained = background_table(blurred, background, images, table, max_difference=th.background_difference)
+    colour = table_mask(images, table)
+    explained = background_table(blurred, background, colour, max_difference=th.background_difference)
     return HeadScene(
         images=images,
         labels=labels,
         table=explained,
-        arm_visibility=arm_visibility(explained, arms.distal, 20 * scale * scale),
+        table_colour=colour,
+        arm_visibility=arm_visibility(explained, background.known, arms.distal, 20 * scale * scale),
         shadow=shadow_like(
             blurred, background, shadows, max_distance=th.shadow_tint_distance, ratio_factor=th.shadow_ratio_factor
         ),

@@ -82,6 +82,7 @@ class HeadScene:
     labels: NDArray[np.uint8]  # (T, H, W) 0 or 1 + object class index
     table: NDArray[np.bool_]  # (T, H, W) pixels the empty scene explains (hallucination_scene.background_table)
     shadow: NDArray[np.bool_]  # (T, H, W) the empty scene darkened or lightened (hallucination_scene.shadow_like)
+    table_colour: NDArray[np.bool_]  # (T, H, W) the start frame's table colour (hallucination_scene.table_mask)
     arm_visibility: float  # share of the drawn forearms the image tells from the empty scene (arm_visibility)
     arms: ArmViews
     classes: list[ColourClass]
@@ -165,6 +166,12 @@ class _ObjectFrames:
             for t in range(T)
         ]
 
+    def table(self, t: int) -> Mask:
+        """Table for the object checks: the empty scene, or the table's colour. A removed object reveals what
+        was under it, which the empty scene may never have shown (an object that never moved, a gripper
+        that hovered over it); its colour is still the table's."""
+        return np.asarray(self.scene.table[t] | self.scene.table_colour[t])
+
     def mask(self, t: int, c: int) -> Mask:
         return np.asarray(self.scene.labels[t] == c + 1)
 
@@ -175,7 +182,7 @@ class _ObjectFrames:
         object is what an object's disappearance reveals, not what hides it.
         """
         labels = self.scene.labels[t]
-        seen = ~self.scene.table[t] | self.arm_unseen
+        seen = ~self.table(t) | self.arm_unseen
         arm = seen & (labels == 0) & ~self.scene.colourful[t] & self.arm_zone[t]
         return dilate(arm | ((labels > 0) & (labels != c + 1)), 2 * self.scene.scale)
 
@@ -224,7 +231,7 @@ class _ObjectFrames:
             small = blob.sum() < 2 * self.min_px
             if small and t >= 2 and (dilate(blob, self.step) & self.mask(t - 2, c)).sum() < 0.5 * blob.sum():
                 continue  # a one-frame sliver (turning into view behind an arm and out again), not an object
-            if (blob & self.scene.table[t]).sum() < 0.5 * blob.sum():
+            if (blob & self.table(t)).sum() < 0.5 * blob.sum():
                 continue  # not (yet) table where it was: a washed-out ghost of it, or something unexplained on top
             if _touches_border(blob) or self.hidden_or_seen(blob, t, c) or self.carried(blob, t - 1, t, c):
                 continue
@@ -323,20 +330,24 @@ def arm_mismatch(scene: HeadScene, th: Thresholds) -> tuple[NDArray[np.float64],
     return miss, extra
 
 
-def arm_visibility(table: Mask, distal: NDArray[np.uint8], min_px: float) -> float:
-    """Median over frames of the share of the drawn forearm-to-fingertips (both arms, eroded by a pixel
-    against silhouette misfit) that ``table`` does not explain; 1.0 when no frame draws ``min_px`` of arm.
+ARM_VISIBILITY_FRAMES = 8  # the first frames: before any fault the bench injects (k ≥ a quarter in), the
+# imagined branch's first chunk at most, so a hallucinated arm cannot lower the measure that excuses it
 
-    About 1.0 on a plain table, 0.98 on wood grain, 0.9 on a grey speckled laminate where the lit side of an
-    arm is the table's grey (measured on the varied look): what an arm over a spot can be told apart by.
+
+def arm_visibility(table: Mask, known: Mask, distal: NDArray[np.uint8], min_px: float) -> float:
+    """The share of the drawn forearm-to-fingertips (both arms, eroded by 2 px against silhouette misfit, where
+    the empty scene is known) that ``table`` does not explain, over the first :data:`ARM_VISIBILITY_FRAMES`
+    frames; 1.0 when they draw fewer than ``min_px`` such pixels.
+
+    ≥ 0.99 on the flat look, 0.96–0.99 on the varied look's wood tables, 0.83–0.94 on its grey laminates,
+    where the lit side of an arm is the table's grey: how well an arm over a spot can be told apart.
     """
-    shares = []
-    for t in range(table.shape[0]):
-        inner = erode(distal[0, t] | distal[1, t], 2)
-        n = int(inner.sum())
-        if n >= min_px:
-            shares.append(float((~table[t][inner]).sum()) / n)
-    return float(np.median(shares)) if shares else 1.0
+    shown = drawn = 0
+    for t in range(min(ARM_VISIBILITY_FRAMES, table.shape[0])):
+        inner = erode(distal[0, t] | distal[1, t], 2) & known
+        shown += int((~table[t][inner]).sum())
+        drawn += int(inner.sum())
+    return shown / drawn if drawn >= min_px else 1.0
 
 
 def check_arms(scene: HeadScene, th: Thresholds) -> Finding | None:

@@ -270,21 +270,15 @@ def learn_background(
 
 
 def background_table(
-    blurred: NDArray[np.float32],
-    background: Background,
-    images: Image,
-    table: TableColour,
-    *,
-    max_difference: float,
+    blurred: NDArray[np.float32], background: Background, colour_rule: Mask, *, max_difference: float
 ) -> Mask:
     """``(T, H, W)`` pixels the empty scene explains: within ``max_difference`` levels (any channel) of the
-    background where it is known; where only objects ever covered a pixel, one table colour (``table``, see
-    :func:`table_mask`) of ``images``; where an arm always was, never (nothing says what is under it)."""
+    background where it is known; where only objects ever covered a pixel, the table-colour rule
+    (``colour_rule``, :func:`table_mask`); where an arm always was, never (nothing says what is under it)."""
     out: Mask = channel_max(np.abs(blurred - background.image[None])) <= max_difference
     out[:, ~background.known] = False
     fallback = ~background.known & background.arm_free
-    if fallback.any():
-        out[:, fallback] = table_mask(images[:, fallback], table)
+    out[:, fallback] = colour_rule[:, fallback]
     return out
 
 

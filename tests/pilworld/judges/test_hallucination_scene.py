@@ -53,7 +53,7 @@ def test_the_arm_is_not_table_and_the_textured_table_is() -> None:
     # one table colour, the arm's own, would call everything table
     colour = TableColour((0.329, 0.333, 0.338), 150.0)
     assert table_mask(images[:1, 10:20, 2:8], colour).all()
-    table = background_table(blurred, bg, images, colour, max_difference=10.0)
+    table = background_table(blurred, bg, table_mask(images, colour), max_difference=10.0)
     t = 5
     inner = np.zeros((H, W), bool)
     inner[11:19, 3 + 3 * t : 3 + 3 * t + 4] = True
