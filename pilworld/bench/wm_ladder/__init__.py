@@ -19,12 +19,16 @@ same plan of pairs (tasks × scripted checkpoints × subtasks, :func:`pilworld.p
    frames carry without being wrong: the autoencoder, a mild Gaussian blur (σ = 1 px at 128²), and
    "artefacts" (JPEG at quality 80, per-frame noise σ = 2 levels, per-frame colour shift σ = 2 levels).
    Success agreement, false-positive rate, and the recall of one injected fault per episode
-   (:mod:`pilworld.judges.faults`, found within k ± 1 as in ``pilworld bench hallucination``).
+   (:mod:`pilworld.judges.faults`, found within k ± 1 as in ``pilworld bench hallucination``); beside the
+   hand-written judge, a learned one (``--judge``, default the shipped judge; ``none``: none) with its drop
+   from the plain episodes on those it judged both ways.
 3. ``teacher_forced`` — per round r = 1..R, pooled PSNR of the model's K frames against the real K
    frames, when every round starts from the real frames (the real observation at the round start, its
    real history, the real executed chunk: one-chunk quality) and in the free closed loop (the same real
    chunks, the model's own frames fed back: compounding), beside the frozen baselines (the round's real
-   start frame held, and the subtask's start frame held). Round 1 is the same in both by construction.
+   start frame held, and the subtask's start frame held). Round 1 is the same in both by construction. Both
+   judges also judge each real episode's teacher-forced re-render (every frame after the start predicted
+   from the real frames before it): docs/judges.md, "Fairness".
 
 Everything resumes from ``--out`` (default ``bench_runs/wm_ladder``): every pair's record of every rung
 is appended to ``<rung>.jsonl`` (keyed by the settings that decide it), and every real branch is kept as
