@@ -50,10 +50,12 @@ from pilworld.judges.hallucination_scene import (
     background_table,
     colourful_mask,
     dilate,
+    empty_pixels,
     learn_background,
     learn_table,
     object_labels,
     predict_arms,
+    ratio_chroma,
     shadow_like,
     shadow_tint,
     smooth,
@@ -93,9 +95,10 @@ def head_scene(
     # The empty scene, pixel by pixel, from the frames where nothing covers each pixel: a textured table,
     # its shading and a tinted light are explained where one table colour is not (the varied look).
     blurred = smooth(images, th.background_blur_px * scale)
-    objects = (labels > 0) | colourful
-    background = learn_background(blurred, arms.whole, objects, th.background_margin_px * scale)
-    shadows = shadow_tint(blurred, background, arms.whole, objects, th.background_margin_px * scale)
+    no_arm, empty = empty_pixels(arms.whole, (labels > 0) | colourful, th.background_margin_px * scale)
+    background = learn_background(blurred, no_arm, empty)
+    chroma, bright = ratio_chroma(blurred, background)
+    shadows = shadow_tint(chroma, bright, background, empty)
     colour = table_mask(images, table)
     explained = background_table(blurred, background, colour, max_difference=th.background_difference)
     return HeadScene(
@@ -105,7 +108,12 @@ def head_scene(
         table_colour=colour,
         arm_visibility=arm_visibility(explained, background.known, arms.distal, 20 * scale * scale),
         shadow=shadow_like(
-            blurred, background, shadows, max_distance=th.shadow_tint_distance, ratio_factor=th.shadow_ratio_factor
+            chroma,
+            bright,
+            background,
+            shadows,
+            max_distance=th.shadow_tint_distance,
+            ratio_factor=th.shadow_ratio_factor,
         ),
         arms=arms,
         classes=classes,

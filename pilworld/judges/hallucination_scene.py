@@ -247,14 +247,19 @@ def smooth(images: NDArray[np.uint8], sigma_px: float) -> NDArray[np.float32]:
     return out.reshape(images.shape).astype(np.float32)
 
 
-def learn_background(
-    blurred: NDArray[np.float32], arms: NDArray[np.uint8], objects: Mask, margin_px: float
-) -> Background:
-    """:class:`Background` of ``blurred`` frames ``(T, H, W, 3)``, arms ``(T, H, W)`` predicted, objects seen."""
+def empty_pixels(arms: NDArray[np.uint8], objects: Mask, margin_px: float) -> tuple[Mask, Mask]:
+    """``(T, H, W)`` pixels with no arm drawn within ``margin_px``, and of those the ones with no object seen
+    within it either: what each frame shows of the empty scene (:func:`learn_background`, :func:`shadow_tint`)."""
+    no_arm = np.stack([~dilate(a, margin_px) for a in arms])
+    empty: Mask = no_arm & ~np.stack([dilate(o, margin_px) for o in objects])
+    return no_arm, empty
+
+
+def learn_background(blurred: NDArray[np.float32], no_arm: Mask, empty: Mask) -> Background:
+    """:class:`Background` of ``blurred`` frames ``(T, H, W, 3)`` from their :func:`empty_pixels`."""
     T = blurred.shape[0]
     pick = np.unique(np.linspace(0, T - 1, min(T, BACKGROUND_MAX_FRAMES)).round().astype(int))
-    no_arm = np.stack([~dilate(arms[t], margin_px) for t in pick])
-    free = no_arm & ~np.stack([dilate(objects[t], margin_px) for t in pick])
+    free = empty[pick]
     # The earliest frames that show a pixel empty: the start is real in both branches, and a later stretch
     # of wrong frames (a swapped view, a world model's drift) must not become the "empty scene".
     known = free.sum(axis=0) >= BACKGROUND_MIN_FREE
@@ -266,7 +271,8 @@ def learn_background(
     start = free[0] if pick[0] == 0 else np.zeros(known.shape, bool)
     image[start] = blurred[0][start]
     known |= start
-    return Background(image=image, known=known, arm_free=(no_arm.sum(axis=0) >= BACKGROUND_MIN_FREE) | start)
+    arm_free = (no_arm[pick].sum(axis=0) >= BACKGROUND_MIN_FREE) | start
+    return Background(image=image, known=known, arm_free=arm_free)
 
 
 def background_table(
@@ -282,11 +288,12 @@ def background_table(
     return out
 
 
-def _ratio_chroma(blurred: NDArray[np.float32], image: NDArray[np.float32]) -> tuple[NDArray[Any], NDArray[Any]]:
-    """Per pixel, the chromaticity of the per-channel ratio frame / empty scene (of its inverse where the
-    frame is brighter) and the brightness ratio. A shadow scales every channel by the light it takes
-    away, so within one episode all shadows share one ratio chromaticity: the tint of what light is left."""
-    q = (blurred + 2.0) / (image + 2.0)
+def ratio_chroma(blurred: NDArray[np.float32], background: Background) -> tuple[NDArray[Any], NDArray[Any]]:
+    """Per pixel of ``blurred`` ``(T, H, W, 3)``, the chromaticity of the per-channel ratio frame / empty scene
+    (of its inverse where the frame is brighter) and the brightness ratio. A shadow scales every channel by the
+    light it takes away, so within one episode all shadows share one ratio chromaticity: the tint of what
+    light is left."""
+    q = (blurred + 2.0) / (background.image[None] + 2.0)
     bright = q.mean(axis=-1)
     q = np.where((bright > 1.0)[..., None], 1.0 / q, q)
     return q / q.sum(axis=-1, keepdims=True), bright
@@ -299,60 +306,51 @@ SHADOW_MIN_SHARE = 0.001
 @dataclass(frozen=True)
 class Shadows:
     """What this episode's cast shadows do to the empty scene: the ratio chromaticity they share (the tint of
-    the light left in them, see :func:`_ratio_chroma`) and their typical brightness ratio (the light left:
+    the light left in them, see :func:`ratio_chroma`) and their typical brightness ratio (the light left:
     on a flat table nearly the same everywhere, 0.5–0.6 on the varied look)."""
 
     tint: NDArray[np.float64]  # (3,)
     ratio: float
 
 
-def shadow_tint(
-    blurred: NDArray[np.float32], background: Background, arms: NDArray[np.uint8], objects: Mask, margin_px: float
-) -> Shadows | None:
-    """This episode's :class:`Shadows`: medians over the pixels away from arms and objects that are darker
-    than the empty scene; None where there are too few (a scene without cast shadows, such as the flat look)."""
-    chromas, ratios = [], []
-    empty = 0
-    for t in range(0, blurred.shape[0], 2):
-        chroma, bright = _ratio_chroma(blurred[t], background.image)
-        free = background.known & ~dilate(arms[t], margin_px) & ~dilate(objects[t], margin_px)
-        dark = free & (bright >= 0.2) & (bright <= 0.85)
-        chromas.append(chroma[dark])
-        ratios.append(bright[dark])
-        empty += int(free.sum())
-    found = np.concatenate(chromas) if chromas else np.zeros((0, 3))
-    if found.shape[0] < max(SHADOW_MIN_SHARE * empty, 50):
+def shadow_tint(chroma: NDArray[Any], bright: NDArray[Any], background: Background, empty: Mask) -> Shadows | None:
+    """This episode's :class:`Shadows` from its :func:`ratio_chroma` and :func:`empty_pixels`: medians over the
+    empty pixels (every second frame) that are darker than the empty scene; None where there are too few (a
+    scene without cast shadows, such as the flat look)."""
+    free = empty[::2] & background.known[None]
+    dark = free & (bright[::2] >= 0.2) & (bright[::2] <= 0.85)
+    found = chroma[::2][dark]
+    if found.shape[0] < max(SHADOW_MIN_SHARE * int(free.sum()), 50):
         return None
     return Shadows(
-        tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(np.concatenate(ratios)))
+        tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(bright[::2][dark]))
     )
 
 
 def shadow_like(
-    blurred: NDArray[np.float32],
+    chroma: NDArray[Any],
+    bright: NDArray[Any],
     background: Background,
     shadows: Shadows | None,
     *,
     max_distance: float,
     ratio_factor: float,
 ) -> Mask:
-    """``(T, H, W)`` pixels that are the empty scene in a shadow cast or lifted: the ratio chromaticity
-    within ``max_distance`` of the shadows' tint, the brightness scaled by the shadows' ratio (or its
-    inverse, a shadow lifted) to within a factor ``ratio_factor``.
+    """``(T, H, W)`` pixels that are the empty scene in a shadow cast or lifted (from :func:`ratio_chroma`): the
+    ratio chromaticity within ``max_distance`` of the shadows' tint, the brightness scaled by the shadows'
+    ratio (or its inverse, a shadow lifted) to within a factor ``ratio_factor``.
 
     A moving arm's shadow falls outside its drawn silhouette and is no arm. On the varied look a shadow lies
     ~0.01 from the tint (up to ~0.023 where two lights overlap) and a grey arm over wood 0.03–0.045; over a
     grey laminate an arm has the shadows' chromaticity, and only the brightness band tells them apart (about
     a third of such arm pixels fall in it)."""
-    out = np.zeros(blurred.shape[:3], bool)
     if shadows is None:
-        return out  # no cast shadows in this scene: nothing to excuse
+        return np.zeros(bright.shape, bool)  # no cast shadows in this scene: nothing to excuse
     lo, hi = shadows.ratio / ratio_factor, min(shadows.ratio * ratio_factor, 0.97)
-    chroma, bright = _ratio_chroma(blurred, background.image[None])
     close = channel_max(np.abs(chroma - shadows.tint.astype(np.float32))) <= max_distance
     cast = (bright >= lo) & (bright <= hi)
     lifted = (bright >= 1.0 / hi) & (bright <= 1.0 / lo)
-    out[:] = background.known[None] & close & (cast | lifted)
+    out: Mask = background.known[None] & close & (cast | lifted)
     return out
 
 

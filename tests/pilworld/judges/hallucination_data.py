@@ -20,24 +20,27 @@ TASK = "stack_blocks"  # 2 subtasks: the cheapest task to run whole (~15 s); thr
 SEED = 4_100_000  # away from the training seeds (0-19) and the acceptance seeds (4,000,000+)
 
 
-def clean_dataset(base: Path) -> Path:
+def clean_dataset(base: Path, *, appearance: str = "flat", seed: int = SEED) -> Path:
     """One run of the best checkpoint on stack_blocks: two subtask episodes of 76 frames."""
-    root = base / "hallucination_clean"
+    root = base / (
+        "hallucination_clean" if (appearance, seed) == ("flat", SEED) else f"hallucination_{appearance}_{seed}"
+    )
     collect(
         root,
         rig_path=str(SIM),
         tasks=[TASK],
         checkpoints=[BEST_CHECKPOINT],
         episodes=1,
-        seed0=SEED,
+        seed0=seed,
         workers=1,
         progress=False,
+        appearance=appearance,
     )
     return root
 
 
-def clean_episodes(base: Path) -> list[Episode]:
-    store = EpisodeStore(clean_dataset(base))
+def clean_episodes(base: Path, *, appearance: str = "flat", seed: int = SEED) -> list[Episode]:
+    store = EpisodeStore(clean_dataset(base, appearance=appearance, seed=seed))
     return [store.load(i) for i in range(store.num_episodes)]
 
 

@@ -146,24 +146,8 @@ def test_the_varied_look_is_explained_by_the_empty_scene(tmp_path: Path, rig: Ri
     """Under the varied look (a textured table, a tinted shadow-casting light) clean episodes are not flagged
     (docs/judges.md: with one table colour the detector flagged 48 of 50 such episodes as arm motion; the
     bench there has every fault's recall on that look)."""
-    from pilworld.collection.collect import collect
-    from pilworld.data.reader import EpisodeStore
-
-    root = tmp_path / "varied"
-    collect(
-        root,
-        rig_path=str(SIM),
-        tasks=["stack_blocks"],
-        checkpoints=["scripted_step_30k"],
-        episodes=1,
-        seed0=4_300_000,
-        workers=1,
-        progress=False,
-        appearance="varied",
-    )
-    store = EpisodeStore(root)
-    assert store.num_episodes == 2
-    for i in range(store.num_episodes):
-        ep = store.load(i)
+    episodes = clean_episodes(tmp_path, appearance="varied", seed=4_300_000)
+    assert len(episodes) == 2
+    for ep in episodes:
         v = _judge(ep, rig)
         assert v.first_hallucination_frame is None, v.reason

@@ -6,9 +6,12 @@ from __future__ import annotations
 import numpy as np
 
 from pilworld.judges.hallucination_scene import (
+    Background,
     TableColour,
     background_table,
+    empty_pixels,
     learn_background,
+    ratio_chroma,
     shadow_like,
     shadow_tint,
     smooth,
@@ -36,10 +39,14 @@ def _scene() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return images.astype(np.uint8), arms, np.zeros((T, H, W), bool)
 
 
+def _background(blurred: np.ndarray, arms: np.ndarray, objects: np.ndarray) -> Background:
+    return learn_background(blurred, *empty_pixels(arms, objects, margin_px=1))
+
+
 def test_the_empty_scene_is_learnt_where_nothing_covers_it_and_unknown_under_an_idle_arm() -> None:
     images, arms, objects = _scene()
     blurred = smooth(images, 0.5)
-    bg = learn_background(blurred, arms, objects, margin_px=1)
+    bg = _background(blurred, arms, objects)
     assert bg.known[:, :30].all()  # the swept band is empty in most frames
     assert not bg.known[:, W - 3 :].any() and not bg.arm_free[:, W - 3 :].any()
     # the learnt image is the table, not the arm that passed over it
@@ -49,7 +56,7 @@ def test_the_empty_scene_is_learnt_where_nothing_covers_it_and_unknown_under_an_
 def test_the_arm_is_not_table_and_the_textured_table_is() -> None:
     images, arms, objects = _scene()
     blurred = smooth(images, 0.5)
-    bg = learn_background(blurred, arms, objects, margin_px=1)
+    bg = _background(blurred, arms, objects)
     # one table colour, the arm's own, would call everything table
     colour = TableColour((0.329, 0.333, 0.338), 150.0)
     assert table_mask(images[:1, 10:20, 2:8], colour).all()
@@ -73,22 +80,27 @@ def test_a_shadow_is_the_table_darker_and_a_differently_coloured_thing_is_not() 
         shadowed[t, 22:30, max(x0 - 2, 0) : x0 + 6] *= 0.5 * tint
     shadowed[6, 2:7, 30:36] = (40, 90, 160)  # something blue
     blurred = smooth(np.clip(shadowed, 0, 255).astype(np.uint8), 0.5)
-    bg = learn_background(blurred, arms, objects, margin_px=1)
-    found = shadow_tint(blurred, bg, arms, objects, margin_px=1)
+    bg = _background(blurred, arms, objects)
+    _, empty = empty_pixels(arms, objects, margin_px=1)
+    found = shadow_tint(*ratio_chroma(blurred, bg), bg, empty)
     assert found is not None
     assert np.abs(found.tint - tint / tint.sum()).max() < 0.01
     assert abs(found.ratio - 0.5 * tint.mean()) < 0.03
-    shadow = shadow_like(blurred, bg, found, max_distance=0.02, ratio_factor=1.35)
+    shadow = shadow_like(*ratio_chroma(blurred, bg), bg, found, max_distance=0.02, ratio_factor=1.35)
     assert shadow[6, 23:29, 17:23].mean() > 0.95
     assert not shadow[6, 3:6, 31:35].any()
     grey = blurred.copy()
     grey[6, 2:8, 10:16] *= 0.9 * tint / tint.mean()  # the shadows' tint but hardly darker: not a shadow of this light
-    assert not shadow_like(grey, bg, found, max_distance=0.02, ratio_factor=1.35)[6, 3:7, 11:15].any()
-    assert not shadow_like(blurred, bg, None, max_distance=0.02, ratio_factor=1.35).any()  # no shadows learnt
+    assert not shadow_like(*ratio_chroma(grey, bg), bg, found, max_distance=0.02, ratio_factor=1.35)[
+        6, 3:7, 11:15
+    ].any()
+    no_tint = shadow_like(*ratio_chroma(blurred, bg), bg, None, max_distance=0.02, ratio_factor=1.35)
+    assert not no_tint.any()  # no shadows learnt
 
 
 def test_a_scene_without_cast_shadows_has_no_tint() -> None:
     images, arms, objects = _scene()
     blurred = smooth(images, 0.5)
-    bg = learn_background(blurred, arms, objects, margin_px=1)
-    assert shadow_tint(blurred, bg, arms, objects, margin_px=1) is None
+    bg = _background(blurred, arms, objects)
+    _, empty = empty_pixels(arms, objects, margin_px=1)
+    assert shadow_tint(*ratio_chroma(blurred, bg), bg, empty) is None
