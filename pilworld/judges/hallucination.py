@@ -106,6 +106,7 @@ def head_scene(
         labels=labels,
         table=explained,
         table_colour=colour,
+        known=background.known,
         arm_visibility=arm_visibility(explained, background.known, arms.distal, 20 * scale * scale),
         shadow=shadow_like(
             chroma,

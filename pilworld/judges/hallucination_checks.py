@@ -67,11 +67,14 @@ class Thresholds:
     background_difference: float = 10.0  # levels (any channel, blurred) a pixel may differ from the empty scene
     background_change: float = 0.25  # fraction of the head view's static background changing in one frame
     wrist_signature: float = 0.5  # fraction of a wrist view's own gripper pixels that must stay dark
+    wrist_signature_alone: float = 0.3  # ... below this, the wrist view alone says it is not itself
     signature_dark: int = 90  # a pixel is "dark" (gripper) below this max-channel value
     min_wrist_object_px: float = 40.0  # wrist views see objects close up; smaller blobs are edges and slivers
     wrist_covered_fraction: float = 0.5  # as covered_fraction, where a wrist view must show an object (coarser)
     wrist_step_px: float = 6.0  # slack around where a wrist view must show an object (plane-height error, lag)
     closed_grip: float = 0.75  # a gripper below this opening may be holding an object (1 = 85 mm open)
+    grip_change: float = 0.05  # a gripper whose opening changes this much over two frames acts on what it touches
+    acting_reach_px: float = 16.0  # ... and what it squeezes out, drops or lets go may land this far from it
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +86,7 @@ class HeadScene:
     table: NDArray[np.bool_]  # (T, H, W) pixels the empty scene explains (hallucination_scene.background_table)
     shadow: NDArray[np.bool_]  # (T, H, W) the empty scene darkened or lightened (hallucination_scene.shadow_like)
     table_colour: NDArray[np.bool_]  # (T, H, W) the start frame's table colour (hallucination_scene.table_mask)
+    known: NDArray[np.bool_]  # (H, W) pixels whose empty scene was seen (hallucination_scene.Background.known)
     arm_visibility: float  # share of the drawn forearms the image tells from the empty scene (arm_visibility)
     arms: ArmViews
     classes: list[ColourClass]
@@ -169,8 +173,13 @@ class _ObjectFrames:
     def table(self, t: int) -> Mask:
         """Table for the object checks: the empty scene, or the table's colour. A removed object reveals what
         was under it, which the empty scene may never have shown (an object that never moved, a gripper
-        that hovered over it); its colour is still the table's."""
-        return np.asarray(self.scene.table[t] | self.scene.table_colour[t])
+        that hovered over it); its colour is still the table's. The colour rule does not count where an arm is
+        drawn: there it cannot tell an arm of the table's grey (the varied look's laminate) from the table;
+        a comparison with the seen empty scene can."""
+        scene = self.scene
+        by_scene = scene.table[t] & scene.known
+        by_colour = (scene.table[t] | scene.table_colour[t]) & (scene.arms.whole[t] == 0)
+        return np.asarray(by_scene | by_colour)
 
     def mask(self, t: int, c: int) -> Mask:
         return np.asarray(self.scene.labels[t] == c + 1)
@@ -217,6 +226,28 @@ class _ObjectFrames:
                 return True
         return False
 
+    def gripper_acting(self, blob: Mask, t: int, *, seen_after: bool = False) -> bool:
+        """Is a gripper opening or closing on ``blob`` around ``t``? An object it squeezes out, drops or lets go
+        moves faster than a plausible step, from under the gripper or out of it. ``seen_after`` (a blob that
+        vanished): something coloured must also be seen nearby at ``t`` or ``t + 1`` (any class: the shading
+        of a falling object can move its hue into a neighbouring class)."""
+        s = self.scene.scale
+        T = self.scene.length
+        for a in range(2):
+            if np.ptp(self.scene.grip[max(t - 2, 0) : t + 1, a]) < self.th.grip_change:
+                continue
+            g = self.scene.arms.gripper[a]
+            if not (blob & dilate(g[max(t - 1, 0)] | g[t], self.step)).any():
+                continue  # within a step of its fingers (the drawn gripper is coarse)
+            if not seen_after:
+                return True
+            near = dilate(blob, self.th.acting_reach_px * s)
+            for u in (t, min(t + 1, T - 1)):
+                coloured = (self.scene.labels[u] > 0) | self.scene.colourful[u]
+                if (near & ~blob & coloured).sum() >= self.min_px:
+                    return True
+        return False
+
     def gripper_moved(self, a: int, t0: int, t1: int) -> bool:
         g = self.scene.arms.gripper[a]
         return int((g[t0] != g[t1]).sum()) >= self.th.gripper_moved_px * self.scene.scale**2
@@ -235,6 +266,8 @@ class _ObjectFrames:
                 continue  # not (yet) table where it was: a washed-out ghost of it, or something unexplained on top
             if _touches_border(blob) or self.hidden_or_seen(blob, t, c) or self.carried(blob, t - 1, t, c):
                 continue
+            if self.gripper_acting(blob, t, seen_after=True):
+                continue
             out.append(blob)
         return out
 
@@ -247,6 +280,8 @@ class _ObjectFrames:
                 continue
             if _touches_border(blob) or self.hidden_or_seen(blob, t - 1, c) or self.carried(blob, t, t - 1, c):
                 continue
+            if self.gripper_acting(dilate(blob, self.th.acting_reach_px * self.scene.scale), t):
+                continue  # out from under a gripper that lets go
             out.append(blob)
         return out
 
@@ -404,13 +439,17 @@ def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thres
         own = (channel_max(frames) < th.signature_dark + 20)[:, sig].mean(axis=1)  # (T,)
         in_head = (channel_max(head.images) < th.signature_dark + 20)[:, sig].mean(axis=1)
         base = float(in_head[: min(3, T)].mean())
+        # A tinted key light can light a wrist view's own gripper up to half of it, and a shadow can darken
+        # the head view where a gripper would be: one sign alone must be strong; a swapped pair shows both.
+        gone = own < th.wrist_signature
+        shown = in_head >= max(th.wrist_signature, base + 0.3)
         for t in range(1, T):
             if bad[t]:
                 continue
-            if own[t] < th.wrist_signature:
+            if own[t] < th.wrist_signature_alone or (gone[t] and shown[t]):
                 bad[t] = True
                 why[t] = f"{view} no longer shows its own gripper ({own[t]:.0%} of it)"
-            elif in_head[t] >= max(th.wrist_signature, base + 0.3):
+            elif in_head[t] >= max(1.0 - th.wrist_signature_alone, base + 0.4):
                 bad[t] = True
                 why[t] = f"cam_high shows {view}'s gripper ({in_head[t]:.0%} of it)"
     for t in range(1, T):

@@ -300,7 +300,7 @@ def ratio_chroma(blurred: NDArray[np.float32], background: Background) -> tuple[
 
 
 # The share of empty pixel-frames darkened before a scene counts as shadowed (flat look: ≤ 0.0001, varied: ≥ 0.002).
-SHADOW_MIN_SHARE = 0.001
+SHADOW_MIN_SHARE = 0.00015
 
 
 @dataclass(frozen=True)

@@ -85,6 +85,93 @@ def test_without_object_colours_the_arm_and_view_checks_still_run(episodes: list
     assert v.first_hallucination_frame in (39, 40, 41) and v.reason.startswith("cross-view conflict")
 
 
+def test_a_lit_wrist_gripper_alone_is_no_swapped_view(episodes: list[Episode], rig: RigConfig) -> None:
+    """A tinted key light lights up to half of a wrist view's own gripper (docs/judges.md, "Under the varied
+    look"): that alone is no cross-view conflict; a gripper three-quarters gone is."""
+    from pilworld.judges.hallucination import head_scene
+    from pilworld.judges.hallucination_checks import Thresholds, check_views, wrist_signature
+
+    ep, th, view = episodes[1], Thresholds(), "cam_left_wrist"
+    scene = head_scene(ep, rig, episode_task(ep), th)
+    sig = wrist_signature(ep.images[view], th.signature_dark)
+    assert sig.sum() >= 20
+
+    def lit(share: float) -> np.ndarray:
+        frames = ep.images[view].copy()
+        rows, cols = np.nonzero(sig)
+        n = int(share * len(rows))
+        frames[30:, rows[:n], cols[:n]] = 170  # the top of the gripper, lit from frame 30 on
+        return frames
+
+    assert check_views(scene, {view: lit(0.55)}, th) is None
+    found = check_views(scene, {view: lit(0.8)}, th)
+    assert found is not None and found.frame == 30 and found.category == "cross-view conflict", found
+
+
+def test_the_table_colour_does_not_call_a_drawn_arm_table(episodes: list[Episode], rig: RigConfig) -> None:
+    """Where the empty scene was never seen (an object always sat there) the table's colour is the rule, but not
+    under a drawn arm: an arm of the table's grey would otherwise hide nothing and an object under it vanish."""
+    from pilworld.judges.hallucination import head_scene
+    from pilworld.judges.hallucination_checks import Thresholds, _ObjectFrames
+
+    ep, th = episodes[0], Thresholds()
+    scene = head_scene(ep, rig, episode_task(ep), th)
+    t = int(np.argmax(scene.arms.whole.reshape(scene.length, -1).sum(axis=1)))
+    everywhere = np.ones_like(scene.table_colour)
+    unseen = _ObjectFrames(dataclasses.replace(scene, table_colour=everywhere, known=np.zeros_like(scene.known)), th)
+    drawn = scene.arms.whole[t] > 0
+    assert drawn.any() and not unseen.table(t)[drawn].any() and unseen.table(t)[~drawn].all()
+    seen = _ObjectFrames(dataclasses.replace(scene, table=everywhere, known=np.ones_like(scene.known)), th)
+    assert seen.table(t).all()  # compared with the seen empty scene, a pixel under a drawn arm can be table
+
+
+def test_an_object_a_gripper_acts_on_may_move_fast(episodes: list[Episode], rig: RigConfig) -> None:
+    """A gripper opening or closing on an object may squeeze it out, drop it or let it go faster than a step:
+    a blob near it that vanishes with something coloured seen close by, or appears out from under it, is
+    explained; with the gripper's opening unchanged, or far from the gripper, it is not."""
+    from pilworld.judges.hallucination import head_scene
+    from pilworld.judges.hallucination_checks import Thresholds, _ObjectFrames
+
+    ep, th = episodes[0], Thresholds()
+    scene = head_scene(ep, rig, episode_task(ep), th)
+    t, H, W = 30, scene.images.shape[1], scene.images.shape[2]
+    gripper = np.zeros_like(scene.arms.gripper)
+    gripper[1, t - 1 : t + 1, 40:50, 60:70] = 1
+    blob = np.zeros((H, W), bool)
+    blob[52:56, 62:66] = True  # just below the fingers
+    labels = scene.labels.copy()
+    labels[t] = 0
+    labels[t, 62:66, 62:66] = 1  # where it landed, 10 px lower
+    grip = scene.grip.copy()
+    grip[:, 1] = 1.0
+    closing = grip.copy()
+    closing[t - 2 : t + 1, 1] = (0.3, 0.15, 0.0)
+    colourless = np.zeros_like(scene.colourful)
+
+    def frames(g: np.ndarray) -> _ObjectFrames:
+        arms = dataclasses.replace(scene.arms, gripper=gripper)
+        return _ObjectFrames(dataclasses.replace(scene, arms=arms, labels=labels, grip=g, colourful=colourless), th)
+
+    assert frames(closing).gripper_acting(blob, t, seen_after=True)
+    assert not frames(grip).gripper_acting(blob, t, seen_after=True)  # the opening does not change
+    far = np.roll(blob, 40, axis=1)
+    assert not frames(closing).gripper_acting(far, t)
+    gone = labels.copy()
+    gone[t : t + 2] = 0
+    nothing = _ObjectFrames(
+        dataclasses.replace(
+            scene,
+            arms=dataclasses.replace(scene.arms, gripper=gripper),
+            labels=gone,
+            grip=closing,
+            colourful=colourless,
+        ),
+        th,
+    )
+    assert not nothing.gripper_acting(blob, t, seen_after=True)  # gone, and seen nowhere near: not explained
+    assert nothing.gripper_acting(blob, t)  # out from under the gripper (an object that appeared)
+
+
 def test_findings_are_ordered_and_name_a_category(episodes: list[Episode], rig: RigConfig) -> None:
     from pilworld.judges.faults import delete_object, swap_views, visible_objects
 
