@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from pilworld.judges.learned.folder import JudgeFolder
 
+REFERENCE = "reference"  # --judge: the paper tasks' hand-written judge (pilworld/reference/), on request only
+
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
@@ -20,7 +22,8 @@ def register(sub: Any) -> None:
         help="run only the imagined branch from stored starts (resumable; worker processes or a Ray cluster)",
         description="For every stored start x checkpoint, the policy in closed loop against the world model, as in "
         "a paired run's imagined branch (the same start and seed give the same episode, bit for bit), then judged "
-        "by the image-only judge. --starts takes a starts folder (pilworld paired record-starts), a paired run "
+        "by a learned judge and the task-free hallucination detector. --starts takes a starts folder "
+        "(pilworld paired record-starts), a paired run "
         "(its own starts) or any episode store. Rerunning the same command resumes.",
     )
     p.add_argument("--starts", type=Path, required=True, help="starts folder, paired run, or episode store")
@@ -53,11 +56,11 @@ def register(sub: Any) -> None:
     p.add_argument("--no-judge", action="store_true", help="store the episodes without judging them")
     p.add_argument(
         "--judge",
-        type=Path,
         default=None,
         metavar="JUDGE",
         help="a learned judge folder (pilworld judge train): it judges success, the task-free detector "
-        "hallucinations, and what it abstains on is queued for people (default: the paper tasks' hand-written judge)",
+        "hallucinations, and what it abstains on is queued for people (default: the shipped judge, trained on the "
+        f"paper's three tasks, which abstains on any other task); {REFERENCE!r}: the paper tasks' hand-written judge",
     )
     p.add_argument("--judge-workers", type=int, default=None, help="processes judging the episodes (default: CPUs)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
@@ -92,12 +95,14 @@ def _imagine(args: argparse.Namespace) -> int:
     check_count(args.workers, "--workers", WORKERS)
     check_count(args.judge_workers, "--judge-workers", WORKERS)
     learned = None
-    if args.judge is not None:
-        if args.no_judge:
-            raise ValueError("--judge and --no-judge: choose one")
+    if args.judge is not None and args.no_judge:
+        raise ValueError("--judge and --no-judge: choose one")
+    if not args.no_judge and args.judge != REFERENCE:
         from pilworld.judges.learned.folder import load_judge
+        from pilworld.judges.learned.shipped import SHIPPED_JUDGE
 
-        learned = load_judge(args.judge)  # a missing or damaged judge folder is refused before anything runs
+        # A missing or damaged judge folder is refused before anything runs.
+        learned = load_judge(Path(args.judge) if args.judge is not None else SHIPPED_JUDGE)
     checkpoints = [c.strip() for c in args.checkpoints.split(",")]
     if not all(checkpoints):
         raise ValueError(f"--checkpoints: expected checkpoint names separated by commas, got {args.checkpoints!r}")
@@ -129,7 +134,7 @@ def _imagine(args: argparse.Namespace) -> int:
     summary = imagine_run(cfg, workers=args.workers, backend=backend, progress=not args.json)
     if not args.no_judge:
         summary["judged"] = judge_run(args.out, workers=args.judge_workers, progress=not args.json, learned=learned)
-    if args.judge is not None and summary.get("judged", {}).get("abstained"):
+    if learned is not None and summary.get("judged", {}).get("abstained"):
         print(f"  {len(summary['judged']['abstained'])} episodes left to people: "
               f"pilworld annotate serve {args.out} --judges N --abstained")  # fmt: skip
     print(

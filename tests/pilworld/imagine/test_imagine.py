@@ -158,6 +158,20 @@ def test_a_killed_run_resumes_to_identical_results(paired: Path, imagined: Path)
     assert _videos(out) == _videos(imagined)
 
 
+def test_the_learned_judge_judges_by_default_and_the_reference_only_on_request(imagined: Path, tmp_path: Path) -> None:
+    """Nothing defaults to the paper tasks' hand-written judge: without --judge the shipped learned judge judges
+    success (beside the task-free detector); ``--judge reference`` asks for the hand-written one."""
+    from pilworld.data.outcomes import read_outcomes
+
+    for extra, judge in (([], "learned"), (["--judge", "reference"], "vision")):
+        out = tmp_path / judge
+        shutil.copytree(imagined, out)
+        args = ["imagine", "--starts", str(imagined.parent / "paired"), "--checkpoints", ",".join(CKPTS)]
+        assert main([*args, "--out", str(out), "--judge-workers", "1", *extra]) == 0
+        judged = {o.judge_id for o in read_outcomes(out)}
+        assert judge in judged and judged <= {judge, "auto_hallucination"}, judged
+
+
 def test_a_rerun_with_other_settings_is_refused(
     paired: Path, imagined: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
