@@ -229,8 +229,9 @@ class _ObjectFrames:
     def gripper_acting(self, blob: Mask, t: int, *, seen_after: bool = False) -> bool:
         """Is a gripper opening or closing on ``blob`` around ``t``? An object it squeezes out, drops or lets go
         moves faster than a plausible step, from under the gripper or out of it. ``seen_after`` (a blob that
-        vanished): something coloured must also be seen nearby at ``t`` or ``t + 1`` (any class: the shading
-        of a falling object can move its hue into a neighbouring class)."""
+        vanished): where it landed must be seen too, as coloured pixels within reach at ``t`` or ``t + 1``
+        where none were at ``t - 1``, a quarter of the blob at least (any class: the shading of a falling
+        object can move its hue into a neighbouring class)."""
         s = self.scene.scale
         T = self.scene.length
         for a in range(2):
@@ -242,9 +243,11 @@ class _ObjectFrames:
             if not seen_after:
                 return True
             near = dilate(blob, self.th.acting_reach_px * s)
+            before = (self.scene.labels[t - 1] > 0) | self.scene.colourful[t - 1]
+            need = max(self.min_px, 0.25 * float(blob.sum()))
             for u in (t, min(t + 1, T - 1)):
-                coloured = (self.scene.labels[u] > 0) | self.scene.colourful[u]
-                if (near & ~blob & coloured).sum() >= self.min_px:
+                landed = near & ((self.scene.labels[u] > 0) | self.scene.colourful[u]) & ~before
+                if landed.sum() >= need:
                     return True
         return False
 
@@ -280,7 +283,7 @@ class _ObjectFrames:
                 continue
             if _touches_border(blob) or self.hidden_or_seen(blob, t - 1, c) or self.carried(blob, t, t - 1, c):
                 continue
-            if self.gripper_acting(dilate(blob, self.th.acting_reach_px * self.scene.scale), t):
+            if self.gripper_acting(blob, t):
                 continue  # out from under a gripper that lets go
             out.append(blob)
         return out

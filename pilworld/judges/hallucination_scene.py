@@ -299,7 +299,9 @@ def ratio_chroma(blurred: NDArray[np.float32], background: Background) -> tuple[
     return q / q.sum(axis=-1, keepdims=True), bright
 
 
-# The share of empty pixel-frames darkened before a scene counts as shadowed (flat look: ≤ 0.0001, varied: ≥ 0.002).
+# The share of empty pixel-frames darkened before a scene counts as shadowed: the flat look has ≤ 0.0001; the
+# varied look mostly ≥ 0.002, but where its shadows fall within a few pixels of the arms (which are not "empty")
+# as little as 0.0002, and an unlearnt tint leaves those shadows to count as arm.
 SHADOW_MIN_SHARE = 0.00015
 
 
