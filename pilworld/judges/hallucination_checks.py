@@ -73,6 +73,7 @@ class Thresholds:
     wrist_covered_fraction: float = 0.5  # as covered_fraction, where a wrist view must show an object (coarser)
     wrist_step_px: float = 6.0  # slack around where a wrist view must show an object (plane-height error, lag)
     closed_grip: float = 0.75  # a gripper below this opening may be holding an object (1 = 85 mm open)
+    object_change: float = 20.0  # levels (max channel, blob mean) the image changes where an object comes or goes
     grip_change: float = 0.05  # a gripper whose opening changes this much over two frames acts on what it touches
     acting_reach_px: float = 16.0  # ... and what it squeezes out, drops or lets go may land this far from it
 
@@ -255,6 +256,18 @@ class _ObjectFrames:
         g = self.scene.arms.gripper[a]
         return int((g[t0] != g[t1]).sum()) >= self.th.gripper_moved_px * self.scene.scale**2
 
+    def changed(self, blob: Mask, t: int) -> bool:
+        """Did the image change where ``blob`` is, from one or three frames before ``t`` to ``t``? An object that
+        comes or goes changes the pixels it covers; a textured table's grains whose colour test flickers with
+        camera noise (a sand-coloured table's grains pass an object's hue test) do not. Three frames back
+        too, so an object a world model fades out over a few frames still counts."""
+        now = self.scene.images[t][blob].astype(np.int16)
+        for d in (1, 3):
+            before = self.scene.images[max(t - d, 0)][blob].astype(np.int16)
+            if float(np.abs(now - before).max(axis=-1).mean()) >= self.th.object_change:
+                return True
+        return False
+
     def vanished(self, t: int, c: int) -> list[Mask]:
         """Blobs of ``c`` at ``t - 1`` with nothing of ``c`` near them at ``t`` and no physical explanation."""
         now = self.mask(t, c)
@@ -262,6 +275,8 @@ class _ObjectFrames:
         for blob in _components(self.mask(t - 1, c), self.min_px):
             if (dilate(blob, self.step) & now).sum() >= 0.25 * blob.sum():
                 continue  # still there, or moved a plausible step
+            if not self.changed(blob, t):
+                continue  # the image did not change there: the colour test flickered, nothing went
             small = blob.sum() < 2 * self.min_px
             if small and t >= 2 and (dilate(blob, self.step) & self.mask(t - 2, c)).sum() < 0.5 * blob.sum():
                 continue  # a one-frame sliver (turning into view behind an arm and out again), not an object
@@ -281,6 +296,10 @@ class _ObjectFrames:
         for blob in _components(self.mask(t, c), self.min_px):
             if (dilate(blob, self.step) & before).sum() >= 0.25 * blob.sum():
                 continue
+            if not self.changed(blob, t):
+                continue  # the image did not change there: nothing came
+            if (blob & (self.scene.table[t] | self.scene.shadow[t])).sum() >= 0.5 * blob.sum():
+                continue  # the empty scene, lit or shaded, explains it: grains a shadow left, not an object
             if _touches_border(blob) or self.hidden_or_seen(blob, t - 1, c) or self.carried(blob, t, t - 1, c):
                 continue
             if self.gripper_acting(blob, t):

@@ -172,6 +172,33 @@ def test_an_object_a_gripper_acts_on_may_move_fast(episodes: list[Episode], rig:
     assert nothing.gripper_acting(blob, t)  # out from under the gripper (an object that appeared)
 
 
+def test_a_colour_test_that_flickers_where_the_image_does_not_change_is_no_object(
+    episodes: list[Episode], rig: RigConfig
+) -> None:
+    """A sand-coloured table's grains pass an object's hue test now and then with camera noise: a blob that comes
+    or goes where the image stays the same (or the empty scene explains it) is no object; one painted in is."""
+    from pilworld.judges.hallucination import head_scene
+    from pilworld.judges.hallucination_checks import Thresholds, _ObjectFrames
+
+    ep, th = episodes[0], Thresholds()
+    scene = head_scene(ep, rig, episode_task(ep), th)
+    t = 20
+    spot = np.zeros(scene.labels.shape[1:], bool)
+    spot[4:8, 60:64] = True  # by the far edge of the table, away from arms and objects
+    assert not (scene.labels[t - 1][spot] > 0).any() and not scene.arms.whole[t - 1 : t + 1, spot].any()
+    labels = scene.labels.copy()
+    labels[t:, spot] = 1  # the colour test says "object" from t on, the image is unchanged
+    flicker = _ObjectFrames(dataclasses.replace(scene, labels=labels), th)
+    assert flicker.appeared(t, 0) == []
+    images = scene.images.copy()
+    images[t:, spot] = (230, 40, 40)  # now something red is there
+    table = scene.table.copy()
+    table[t:, spot] = False
+    painted = _ObjectFrames(dataclasses.replace(scene, labels=labels, images=images, table=table), th)
+    found = painted.appeared(t, 0)
+    assert len(found) == 1 and (found[0] == spot).all()
+
+
 def test_findings_are_ordered_and_name_a_category(episodes: list[Episode], rig: RigConfig) -> None:
     from pilworld.judges.faults import delete_object, swap_views, visible_objects
 
