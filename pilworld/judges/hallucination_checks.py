@@ -68,6 +68,7 @@ class Thresholds:
     background_change: float = 0.25  # fraction of the head view's static background changing in one frame
     wrist_signature: float = 0.5  # fraction of a wrist view's own gripper pixels that must stay dark
     wrist_signature_alone: float = 0.3  # ... below this, the wrist view alone says it is not itself
+    head_signature_alone: float = 0.7  # ... this much of it dark in the head view says so alone
     signature_dark: int = 90  # a pixel is "dark" (gripper) below this max-channel value
     min_wrist_object_px: float = 40.0  # wrist views see objects close up; smaller blobs are edges and slivers
     wrist_covered_fraction: float = 0.5  # as covered_fraction, where a wrist view must show an object (coarser)
@@ -264,7 +265,7 @@ class _ObjectFrames:
         now = self.scene.images[t][blob].astype(np.int16)
         for d in (1, 3):
             before = self.scene.images[max(t - d, 0)][blob].astype(np.int16)
-            if float(np.abs(now - before).max(axis=-1).mean()) >= self.th.object_change:
+            if float(channel_max(np.abs(now - before)).mean()) >= self.th.object_change:
                 return True
         return False
 
@@ -465,13 +466,14 @@ def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thres
         # the head view where a gripper would be: one sign alone must be strong; a swapped pair shows both.
         gone = own < th.wrist_signature
         shown = in_head >= max(th.wrist_signature, base + 0.3)
+        shown_alone = in_head >= max(th.head_signature_alone, base + 0.4)
         for t in range(1, T):
             if bad[t]:
                 continue
             if own[t] < th.wrist_signature_alone or (gone[t] and shown[t]):
                 bad[t] = True
                 why[t] = f"{view} no longer shows its own gripper ({own[t]:.0%} of it)"
-            elif in_head[t] >= max(1.0 - th.wrist_signature_alone, base + 0.4):
+            elif shown_alone[t]:
                 bad[t] = True
                 why[t] = f"cam_high shows {view}'s gripper ({in_head[t]:.0%} of it)"
     for t in range(1, T):

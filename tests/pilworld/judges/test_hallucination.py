@@ -148,9 +148,9 @@ def test_an_object_a_gripper_acts_on_may_move_fast(episodes: list[Episode], rig:
     closing[t - 2 : t + 1, 1] = (0.3, 0.15, 0.0)
     colourless = np.zeros_like(scene.colourful)
 
-    def frames(g: np.ndarray) -> _ObjectFrames:
+    def frames(g: np.ndarray, seen: np.ndarray = labels) -> _ObjectFrames:
         arms = dataclasses.replace(scene.arms, gripper=gripper)
-        return _ObjectFrames(dataclasses.replace(scene, arms=arms, labels=labels, grip=g, colourful=colourless), th)
+        return _ObjectFrames(dataclasses.replace(scene, arms=arms, labels=seen, grip=g, colourful=colourless), th)
 
     assert frames(closing).gripper_acting(blob, t, seen_after=True)
     assert not frames(grip).gripper_acting(blob, t, seen_after=True)  # the opening does not change
@@ -158,16 +158,7 @@ def test_an_object_a_gripper_acts_on_may_move_fast(episodes: list[Episode], rig:
     assert not frames(closing).gripper_acting(far, t)
     gone = labels.copy()
     gone[t : t + 2] = 0
-    nothing = _ObjectFrames(
-        dataclasses.replace(
-            scene,
-            arms=dataclasses.replace(scene.arms, gripper=gripper),
-            labels=gone,
-            grip=closing,
-            colourful=colourless,
-        ),
-        th,
-    )
+    nothing = frames(closing, gone)
     assert not nothing.gripper_acting(blob, t, seen_after=True)  # gone, and seen nowhere near: not explained
     assert nothing.gripper_acting(blob, t)  # out from under the gripper (an object that appeared)
 
