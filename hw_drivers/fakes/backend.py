@@ -234,6 +234,7 @@ class SimBackend:
         self._frames: dict[str, tuple[NDArray[np.uint8], float]] = {}
         self._cameras: tuple[str, ...] = ()
         self.control_rate_hz = 0.0
+        self._lag_max = 0.0  # how far physics fell behind the wall clock [s] (see timing())
         self._thread = threading.Thread(target=self._run, name="sim-backend", daemon=True)
         self._thread.start()
         if not self._ready.wait(start_timeout):
@@ -267,22 +268,32 @@ class SimBackend:
         next_frame = next_tick + self._camera_period
         try:
             while not self._stop.is_set():
-                self._serve_calls(robot)
+                if self._serve_calls(robot):
+                    # A scene reset is a pause of the world, not lag: the clock and the record start afresh.
+                    next_tick = time.monotonic()
+                    with self._lock:
+                        self._lag_max = 0.0
                 now = time.monotonic()
                 if now < next_tick:
                     time.sleep(min(next_tick - now, 0.002))
                     continue
                 # Behind real time (a slow machine): catch up by stepping, never by skipping physics.
+                lag = now - next_tick
                 next_tick += period
                 with self._lock:
                     target = self._target.copy()
+                    self._lag_max = max(self._lag_max, lag)
                 before = robot.state().astype(np.float64)
                 robot.send_action(target)
                 after = robot.state().astype(np.float64)
                 with self._lock:
                     self._state = after
                     self._qd = (after - before) / period
-                if time.monotonic() >= next_frame:
+                # Physics first: while it is a step or more behind, a frame waits (a camera drops frames under
+                # load; an arm does not stop) — but never for more than three frame periods, so frames stay fresh.
+                now = time.monotonic()
+                behind = now - next_tick > period
+                if now >= next_frame and (not behind or now >= next_frame + 2 * self._camera_period):
                     self._render_all(robot)
                     next_frame = time.monotonic() + self._camera_period
         except BaseException as e:
@@ -298,12 +309,14 @@ class SimBackend:
         with self._lock:
             self._frames.update(frames)
 
-    def _serve_calls(self, robot: Any) -> None:
+    def _serve_calls(self, robot: Any) -> bool:
+        """Run the queued calls; whether one of them moved the world."""
+        moved = False
         while True:
             try:
                 fn, fut, moves_world = self._calls.get_nowait()
             except queue.Empty:
-                return
+                return moved
             if not fut.set_running_or_notify_cancel():
                 continue
             try:
@@ -315,6 +328,7 @@ class SimBackend:
                 fut.set_result(result)
                 continue
             # A reset moves the world: targets follow it, so nothing yanks the arms back.
+            moved = True
             state = robot.state().astype(np.float64)
             with self._lock:
                 self._state = state
@@ -396,6 +410,13 @@ class SimBackend:
                 raise ValueError(f"camera: expected one of {self._cameras}, got {camera!r}")
             img, t = self._frames[camera]
         return img, t
+
+    def timing(self) -> dict[str, float]:
+        """How well the simulation kept the wall clock since it started or last reset its scene:
+        ``physics_lag_max_s``, the most its physics ran behind (it catches up by stepping, so commands sent
+        meanwhile take effect late)."""
+        with self._lock:
+            return {"physics_lag_max_s": self._lag_max}
 
     def close(self) -> None:
         self._stop.set()

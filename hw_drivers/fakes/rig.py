@@ -65,10 +65,13 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
         gripper_ports: dict[str, str] = {}
         from hw_drivers.fakes.ur_controller import FakeURController
 
+        controllers: dict[str, FakeURController] = {}
+
         for side, host in (("left", fake.left_host), ("right", fake.right_host)):
             ctrl = FakeURController(backend, side, host=host, faults=faults[f"{side}_arm"])
             ctrl.start()
             started.append(ctrl)
+            controllers[side] = ctrl
             arm_hosts[side] = host
         for side in ("left", "right"):
             g = getattr(hw.grippers, side)
@@ -118,7 +121,16 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
                 conn.send(("ok", None))
                 break
             try:
-                conn.send(("ok", _handle(backend, faults, op, kwargs, person)))
+                if op == "timing":
+                    timing = backend.timing()
+                    gaps = {side: c.cycle_gap_max_s for side, c in controllers.items()}
+                    conn.send(("ok", {**timing, "controller_gap_max_s": max(gaps.values(), default=0.0)}))
+                    continue
+                result = _handle(backend, faults, op, kwargs, person)
+                if op == "reset":  # a new subtask: the timing record starts afresh (backend.timing() does too)
+                    for c in controllers.values():
+                        c.cycle_gap_max_s = 0.0
+                conn.send(("ok", result))
             except BaseException:
                 conn.send(("error", traceback.format_exc()))
     finally:
@@ -269,6 +281,12 @@ class FakeRig:
 
     def object_poses(self) -> dict[str, list[float]]:
         return dict(self.request("object_poses"))
+
+    def timing(self) -> dict[str, float]:
+        """How well the fake rig kept the wall clock since it started or last reset a scene, in seconds (a loaded
+        machine shows here, no real rig does): ``physics_lag_max_s``, the most the simulation ran behind;
+        ``controller_gap_max_s``, the longest pause between two of a fake UR controller's 2 ms cycles."""
+        return {k: float(v) for k, v in self.request("timing").items()}
 
     # The person at the rig during a calibration (hw_drivers.fakes.calibration_person).
     def board(self, where: str | None, board: str | Path) -> None:

@@ -127,6 +127,7 @@ class FakeURController:
         self.dh = "ur5e"  # the rig's arms
         self.tcp = np.eye(4)  # T_flange_tcp, set by setTcp (29)
         self.ticks = 0  # control cycles run: the simulated clock (timestamp = ticks * TICK_S)
+        self.cycle_gap_max_s = 0.0  # the longest wall time between two control cycles (a loaded machine)
         self._velocity: NDArray[np.float64] | None = None  # speedJ joint velocity, or speedL TCP twist …
         self._cartesian = False  # … when this is set: [vx, vy, vz] m/s, [wx, wy, wz] rad/s in the base frame
         self._line: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None = None  # moveL
@@ -222,10 +223,14 @@ class FakeURController:
 
     def _control_loop(self) -> None:
         next_tick = time.monotonic()
+        last = next_tick
         while self._running.is_set():
             next_tick += TICK_S
             time.sleep(max(0.0, next_tick - time.monotonic()))
-            if time.monotonic() - next_tick > 0.1:
+            now = time.monotonic()
+            self.cycle_gap_max_s = max(self.cycle_gap_max_s, now - last)  # a pause a real controller never has
+            last = now
+            if now - next_tick > 0.1:
                 next_tick = time.monotonic()  # fell far behind (a loaded machine): do not burst
             if self.faults.active("disconnect"):
                 with self._lock:

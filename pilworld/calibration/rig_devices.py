@@ -126,24 +126,33 @@ class RigRobot:
     fake: Any = None  # hw_drivers.fakes.rig.FakeRig
 
     def grab(self, camera: str, after: float | None = None, timeout: float = 5.0) -> npt.NDArray[np.uint8]:
-        """A full-resolution frame of ``camera`` taken after ``after`` (``time.monotonic()``), RGB.
+        """A full-resolution frame of ``camera`` exposed after ``after`` (``time.monotonic()``), RGB.
 
-        Waiting for a frame newer than the moment the arm settled keeps motion out of the image; a stale or
-        lost stream raises the driver's typed error (after stopping the arms, as every device error does).
+        Waiting for a frame newer than the moment the arm settled keeps motion out of the image. A frame's
+        timestamp is when it arrived, not when it was exposed, and a camera's pipeline (its buffer, an encoder,
+        the network) holds a frame or so: the first frame to arrive after ``after`` may show the arm still
+        moving, so it is passed over and the next one taken. A stale or lost stream raises the driver's typed
+        error (after stopping the arms, as every device error does).
         """
         import time
 
         cam = self.robot.cameras[camera]
         assert self.rig.hardware is not None
         deadline = time.monotonic() + timeout
+        first: int | None = None  # the index of the first frame to arrive after ``after``
         while True:
             try:
                 frame = cam.read_latest(self.rig.hardware.max_age)
             except Exception:
                 self.robot.stop()
                 raise
-            if after is None or frame.timestamp > after:
+            if after is None:
                 return np.asarray(frame.image, dtype=np.uint8)
+            if frame.timestamp > after:
+                if first is None:
+                    first = frame.index
+                elif frame.index > first:
+                    return np.asarray(frame.image, dtype=np.uint8)
             if time.monotonic() > deadline:
                 from hw_drivers.errors import DeviceTimeoutError
 

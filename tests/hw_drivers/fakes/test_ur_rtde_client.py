@@ -54,9 +54,15 @@ out["set_tcp"] = c.setTcp(TCP)
 out["tcp_offset"] = c.getTCPOffset()
 time.sleep(0.05)
 out["q"] = r.getActualQ(); out["actual_tcp"] = r.getActualTCPPose(); out["target_tcp"] = r.getTargetTCPPose()
-c.getActualToolFlangePose()  # real-time (58): ur_rtde reads the registers without waiting for the answer …
-time.sleep(0.05)
-out["flange"] = c.getActualToolFlangePose()  # … so the answer to the first call is read by the second
+# Real-time (58): ur_rtde reads the output registers without waiting for the controller's answer, so a call
+# returns what the registers held (the previous answer, here getTCPOffset's) until the answer lands. Ask again
+# until it has (bounded): on a loaded machine the fake may take longer than any fixed wait to answer.
+flange = c.getActualToolFlangePose()
+t = time.monotonic()
+while max(abs(a - b) for a, b in zip(flange, TCP)) < 1e-9 and time.monotonic() - t < 5.0:
+    time.sleep(0.02)
+    flange = c.getActualToolFlangePose()
+out["flange"] = flange
 out["fk_default"] = c.getForwardKinematics()
 out["fk_args"] = c.getForwardKinematics(Q_HOME, TCP)
 out["ik"] = c.getInverseKinematics(out["actual_tcp"])
@@ -225,11 +231,12 @@ def test_speedl_moves_the_tcp_in_a_straight_line(session: tuple[dict[str, Any], 
     # speedL ran for part of [t0, t1] on the simulated clock, so the distance is at most v * (t1 - t0), and for all
     # of [ta, tb] (read just after speedL returned and just before speedStop), less the 0.05 s ramp at 1 m/s^2:
     # bounds on the controller's clock, which a loaded fake runs slower than the wall clock. speedStop holds
-    # where the simulated arm is, which trails its setpoint in joint space (further when the fake's physics
-    # falls behind on a loaded machine: 3.04e-3 was seen), hence that direction only to 1e-2; the setpoint
-    # while moving is on the line exactly
+    # where the simulated arm is, which trails its setpoint in joint space, so the end is off the line by the
+    # arm's tracking error: sub-millimetre (0.06 mm idle, about 0.25 mm in a loaded CI run, where a bound on the
+    # direction alone failed), bounded here by 1 mm; the setpoint while moving is on the line exactly
     direction = np.array([0.05, 0, -0.02]) / np.hypot(0.05, 0.02)
-    np.testing.assert_allclose(moved / np.linalg.norm(moved), direction, atol=1e-2)
+    off_line = moved - np.dot(moved, direction) * direction
+    assert np.dot(moved, direction) > 0 and np.linalg.norm(off_line) < 1e-3, off_line
     mid = np.array(out["speedl_mid"])
     np.testing.assert_allclose((mid[:3] - p0[:3]) / np.linalg.norm(mid[:3] - p0[:3]), direction, atol=1e-6)
     np.testing.assert_allclose(pose_to_matrix(mid)[:3, :3], pose_to_matrix(p0)[:3, :3], atol=1e-6)
