@@ -60,6 +60,7 @@ from pilworld.judges.hallucination_scene import (
     shadow_tint,
     smooth,
     table_mask,
+    table_texture,
 )
 from pilworld.judges.hallucination_wrist import check_wrist_objects
 from pilworld.perception.objects import discover_colours_over
@@ -86,9 +87,21 @@ def head_scene(
     # for all but a few frames; one missed colour is one object never tracked): no task knowledge.
     classes = discover_colours_over(images, exclude=np.stack([dilate(a, 2) for a in arms.whole]), samples=len(images))
     th = thresholds or Thresholds()
+    scale = cam.width / REFERENCE_WIDTH
+    # A colour that is the table's own grain, not an object, is no object class (a wood table's warm specks).
+    n = min(th.texture_frames, len(images))
+    texture = table_texture(
+        images[:n],
+        classes,
+        arms.whole[:n],
+        faded_saturation=th.faded_saturation,
+        ratio=th.texture_ratio,
+        specks=th.texture_specks,
+        scale=scale,
+    )
+    classes = [c for c, grain in zip(classes, texture, strict=True) if not grain]
     labels = object_labels(images, classes, th.faded_saturation)
     colourful = colourful_mask(images)
-    scale = cam.width / REFERENCE_WIDTH
     # The table's colour from the start frame (real in both branches), away from arms and objects: the
     # rule for pixels the empty scene below never shows.
     table = learn_table(images[0], dilate(arms.whole[0], 3) | dilate(labels[0] > 0, 2))

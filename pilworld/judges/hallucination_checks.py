@@ -77,6 +77,10 @@ class Thresholds:
     object_change: float = 20.0  # levels (max channel, blob mean) the image changes where an object comes or goes
     grip_change: float = 0.05  # a gripper whose opening changes this much over two frames acts on what it touches
     acting_reach_px: float = 16.0  # ... and what it squeezes out, drops or lets go may land this far from it
+    faint_object_px: float = 24.0  # a blob of only faded pixels smaller than this is a speck, not an object
+    texture_frames: int = 3  # start frames a colour's speckle is counted in (see hallucination_scene.table_texture)
+    texture_ratio: float = 1.0  # a colour is the table's texture when its faded speckle outnumbers its object pixels
+    texture_specks: int = 3  # ... in at least this many separate specks
 
 
 @dataclass(frozen=True, eq=False)
@@ -269,6 +273,13 @@ class _ObjectFrames:
                 return True
         return False
 
+    def faint(self, blob: Mask, t: int) -> bool:
+        """Is ``blob`` at ``t`` a speck of faded pixels only (none fully saturated) and small? A table's grain of an
+        object's hue (a warm wood table under warm light) passes the faded colour test by a hair and drops out of it
+        with camera noise or a passing shadow; a washed-out object in a world model's frame is larger."""
+        small = float(blob.sum()) < self.th.faint_object_px * self.scene.scale**2
+        return small and not (blob & self.scene.colourful[t]).any()
+
     def vanished(self, t: int, c: int) -> list[Mask]:
         """Blobs of ``c`` at ``t - 1`` with nothing of ``c`` near them at ``t`` and no physical explanation."""
         now = self.mask(t, c)
@@ -276,6 +287,8 @@ class _ObjectFrames:
         for blob in _components(self.mask(t - 1, c), self.min_px):
             if (dilate(blob, self.step) & now).sum() >= 0.25 * blob.sum():
                 continue  # still there, or moved a plausible step
+            if self.faint(blob, t - 1):
+                continue  # a speck of the table's grain, not an object
             if not self.changed(blob, t):
                 continue  # the image did not change there: the colour test flickered, nothing went
             small = blob.sum() < 2 * self.min_px
@@ -297,6 +310,8 @@ class _ObjectFrames:
         for blob in _components(self.mask(t, c), self.min_px):
             if (dilate(blob, self.step) & before).sum() >= 0.25 * blob.sum():
                 continue
+            if self.faint(blob, t):
+                continue  # a speck of the table's grain, not an object
             if not self.changed(blob, t):
                 continue  # the image did not change there: nothing came
             if (blob & (self.scene.table[t] | self.scene.shadow[t])).sum() >= 0.5 * blob.sum():

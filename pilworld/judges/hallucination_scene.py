@@ -378,6 +378,46 @@ def object_labels(images: Image, classes: list[ColourClass], faded_saturation: f
     return out
 
 
+def table_texture(
+    images: Image,
+    classes: list[ColourClass],
+    arms: NDArray[np.uint8],
+    *,
+    faded_saturation: float = 0.22,
+    ratio: float = 1.0,
+    specks: int = 3,
+    scale: float = 1.0,
+) -> list[bool]:
+    """Per class, whether it is the table's own texture rather than an object, from start frames ``images``
+    ``(T, H, W, 3)`` with the arms drawn in ``arms`` ``(T, H, W)``.
+
+    A warm wood table's grains have an object's hue: they pass :func:`object_labels`' faded test (bright,
+    saturation ≥ ``faded_saturation``) and now and then a pixel or two its full test, so the colour is
+    discovered, and its specks come and go with camera noise and shadows. An object is a compact blob of
+    fully saturated pixels with a faded rim. So a class whose faded pixels away from its own saturated ones
+    (beyond a rim of 3 px) outnumber those saturated pixels ``ratio`` times over, in ``specks`` or more specks,
+    over the start frames (real in both branches), is texture: measured at seeds 4,600,000+, the wood's
+    classes had 6-33 times more speck pixels than saturated ones in 8-23 specks; the objects' below 0.3.
+    """
+    out: list[bool] = []
+    strict = [segment(im, classes, min_value=0.2) for im in images] if classes else []
+    faded = [segment(im, classes, min_saturation=faded_saturation, min_value=0.45) for im in images] if classes else []
+    rim = 3.0 * scale
+    for c in classes:
+        solid = speckle = 0
+        count = 0
+        for t in range(len(images)):
+            away = ~dilate(arms[t], 2 * scale)
+            s = strict[t][c.name] & away
+            f = faded[t][c.name] & away & ~dilate(s, rim)
+            solid += int(s.sum())
+            speckle += int(f.sum())
+            n, _ = cv2.connectedComponents(f.astype(np.uint8), connectivity=8)
+            count = max(count, n - 1)
+        out.append(count >= specks and speckle >= ratio * max(solid, 1))
+    return out
+
+
 def colourful_mask(images: Image, min_saturation: float = 0.3, min_value: float = 0.2) -> Mask:
     """``(..., H, W)`` True for saturated pixels of any hue (``images`` ``(..., H, W, 3)`` RGB): objects.
 

@@ -185,9 +185,41 @@ def test_a_colour_test_that_flickers_where_the_image_does_not_change_is_no_objec
     images[t:, spot] = (230, 40, 40)  # now something red is there
     table = scene.table.copy()
     table[t:, spot] = False
-    painted = _ObjectFrames(dataclasses.replace(scene, labels=labels, images=images, table=table), th)
+    colourful = scene.colourful.copy()
+    colourful[t:, spot] = True
+    painted = _ObjectFrames(
+        dataclasses.replace(scene, labels=labels, images=images, table=table, colourful=colourful), th
+    )
     found = painted.appeared(t, 0)
     assert len(found) == 1 and (found[0] == spot).all()
+
+
+def test_a_faint_speck_of_an_objects_hue_is_no_object(episodes: list[Episode], rig: RigConfig) -> None:
+    """A warm wood table's grain passes the faded colour test by a hair and drops out of it with noise or a shadow:
+    a small blob of faded pixels only comes and goes without counting; the same blob, saturated, is an object."""
+    from pilworld.judges.hallucination import head_scene
+    from pilworld.judges.hallucination_checks import Thresholds, _ObjectFrames
+
+    ep, th = episodes[0], Thresholds()
+    scene = head_scene(ep, rig, episode_task(ep), th)
+    t = 20
+    spot = np.zeros(scene.labels.shape[1:], bool)
+    spot[4:8, 60:64] = True  # 16 px by the far edge of the table, away from arms and objects
+    labels, images, table = scene.labels.copy(), scene.images.copy(), scene.table.copy()
+    labels[t:, spot] = 1
+    images[t:, spot] = (200, 150, 150)  # a faded red: saturation 0.25
+    table[t:, spot] = False
+    faint = _ObjectFrames(dataclasses.replace(scene, labels=labels, images=images, table=table), th)
+    assert faint.faint(spot, t) and faint.appeared(t, 0) == []
+    colourful = scene.colourful.copy()
+    colourful[t:, spot] = True  # one saturated pixel would do
+    solid = _ObjectFrames(
+        dataclasses.replace(scene, labels=labels, images=images, table=table, colourful=colourful), th
+    )
+    assert not solid.faint(spot, t) and len(solid.appeared(t, 0)) == 1
+    big = np.zeros_like(spot)
+    big[4:10, 58:64] = True  # 36 px: a washed-out object, not a speck
+    assert not faint.faint(big, t)
 
 
 def test_findings_are_ordered_and_name_a_category(episodes: list[Episode], rig: RigConfig) -> None:

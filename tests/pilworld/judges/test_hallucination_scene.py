@@ -135,3 +135,29 @@ def test_a_scene_with_few_cast_shadows_still_learns_their_tint() -> None:
     assert found is not None and np.abs(found.tint - tint / tint.sum()).max() < 0.01
     share, found = darkened(1)
     assert share < SHADOW_MIN_SHARE and found is None
+
+
+def test_a_colour_in_faint_specks_all_over_the_table_is_its_texture() -> None:
+    """A wood table's grains (faded warm specks) are texture; an object (a saturated blob, its faded rim) is not."""
+    import colorsys
+
+    from pilworld.judges.hallucination_scene import table_texture
+    from pilworld.perception.colour import ColourClass
+
+    def rgb(hue_deg: float, sat: float, val: float) -> tuple[int, int, int]:
+        r, g, b = colorsys.hsv_to_rgb(hue_deg / 360.0, sat, val)
+        return round(255 * r), round(255 * g), round(255 * b)
+
+    image = np.full((3, 64, 64, 3), 120, np.uint8)
+    image[:, 30:40, 30:40] = rgb(200, 0.25, 0.8)  # the object's faded rim …
+    image[:, 32:38, 32:38] = rgb(200, 0.9, 0.8)  # … around its saturated body
+    for k in range(6):  # grains of another hue, faded, spread over the table
+        image[:, 4 + 9 * k : 6 + 9 * k, 4:8] = rgb(30, 0.25, 0.8)
+    classes = [ColourClass("blue", colorsys.hsv_to_rgb(200 / 360, 1, 1)), ColourClass("wood", (1.0, 0.5, 0.0))]
+    arms = np.zeros(image.shape[:3], np.uint8)
+    assert table_texture(image, classes, arms) == [False, True]
+    image[:, 4:6, 4:8] = rgb(30, 0.9, 0.8)  # one grain saturated: still far outnumbered
+    assert table_texture(image, classes, arms) == [False, True]
+    arms[:, :, :12] = 1  # an arm over the grains: no specks seen, no texture
+    assert table_texture(image, classes, arms) == [False, False]
+    assert table_texture(image, [], arms) == []
