@@ -3,10 +3,51 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 
 from simrig.files import SIM_RIG  # the one definition; the tests import it from here too
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Tests that run the rig in real time (fake UR controllers, grippers and cameras on the wall clock, the drivers'
+# servo loops) or on the fake rig's fixed loopback addresses (127.0.0.1/.2, the UR ports): a test beside them takes
+# the CPU their timing needs, or their ports. Marked ``serial``: scripts/test runs them alone, then the rest in
+# parallel (pytest-xdist). The browser test under load makes its own load and is here for the same reason.
+SERIAL = (
+    "tests/hw_drivers/",
+    "tests/pilworld/calibration/test_rig_motion.py",
+    "tests/pilworld/cli/test_calibrate_live_cli.py",
+    "tests/pilworld/cli/test_calibrate_rig_cli.py",
+    "tests/pilworld/judges/learned/test_real_rig_workflow.py",
+    "tests/pilworld/paired/test_hardware_resume.py",
+    "tests/pilworld/paired/test_operator_unattended.py",
+    "tests/pilworld/paired/test_reset_pose.py",
+    "tests/pilworld/paired/test_task_files.py",
+    "tests/pilworld/report/test_browser_under_load.py",
+)
+# Folders whose conftest builds session fixtures (a paired run, a training set): one xdist worker takes the whole
+# folder, so each is built once. Every other file goes to one worker whole (its module fixtures built once).
+SHARED_SESSION = (
+    "tests/pilworld/annotate/",
+    "tests/pilworld/report/",
+    "tests/pilworld/world_model/composite/",
+    "tests/pilworld/world_model/training/",
+)
+
+
+@pytest.hookimpl(tryfirst=True)  # before ``-m`` deselects by marker
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    xdist = config.pluginmanager.hasplugin("xdist")
+    for item in items:
+        path = Path(str(item.fspath)).resolve()
+        rel = path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else path.as_posix()
+        if rel.startswith(SERIAL):
+            item.add_marker(pytest.mark.serial)
+        if xdist:
+            group = next((folder for folder in SHARED_SESSION if rel.startswith(folder)), rel)
+            item.add_marker(pytest.mark.xdist_group(group))
 
 
 @pytest.fixture(scope="session")
