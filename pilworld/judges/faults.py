@@ -44,13 +44,15 @@ from pilworld.judges.hallucination_scene import (
     dilate,
     learn_table,
     table_mask,
+    table_texture,
 )
 from pilworld.perception.colour import ColourClass, segment
 from pilworld.perception.objects import discover_colours_over
 from pilworld.types import HEAD_VIEW
 
 FAULTS: tuple[str, ...] = ("delete_object", "duplicate_object", "swap_views", "teleport_arm")
-MIN_VISIBLE_PX = 10  # an object must show at least this many head-view pixels at k-1 to be faulted (at 128²)
+MIN_VISIBLE_PX = 10  # an object's largest blob must show this many head-view pixels at k-1 to be faulted (at 128²)
+TEXTURE_FRAMES = 3  # start frames in which a colour's specks mark it as the table's texture (as the detector's)
 
 
 class FaultError(ValueError):
@@ -67,8 +69,17 @@ def _scale(ep: Episode) -> float:
 
 
 def object_colours(ep: Episode) -> list[ColourClass]:
-    """The episode's object colours, found in its head view (no task knowledge: any task can be faulted)."""
-    classes = discover_colours_over(ep.images[HEAD_VIEW])
+    """The episode's object colours, found in its head view (no task knowledge: any task can be faulted).
+
+    A colour the start frames show only as faint specks over the table is its texture (a warm wood's grain), not an
+    object, and is left out (:func:`~pilworld.judges.hallucination_scene.table_texture`): painting grains away is
+    no object deleted. No arms are drawn here (the faults need no rig); arm pixels pass no colour test anyway.
+    """
+    head = ep.images[HEAD_VIEW]
+    found = discover_colours_over(head)
+    n = min(TEXTURE_FRAMES, len(head))
+    texture = table_texture(head[:n], found, np.zeros(head.shape[:1] + head.shape[1:3], np.uint8)[:n], scale=_scale(ep))
+    classes = [c for c, grain in zip(found, texture, strict=True) if not grain]
     if not classes:
         raise FaultError(f"task {episode_task(ep)!r} ({ep.task!r}): no coloured object visible in {HEAD_VIEW}")
     return classes
@@ -86,11 +97,20 @@ def _with(ep: Episode, images: dict[str, NDArray[np.uint8]], fault: dict[str, ob
 
 
 def visible_objects(ep: Episode, frame: int) -> dict[str, int]:
-    """Head-view pixels of each task object at ``frame`` (objects with fewer than MIN_VISIBLE_PX left out)."""
+    """Head-view pixels of each object colour's largest blob at ``frame`` (below MIN_VISIBLE_PX left out).
+
+    The largest blob, not all the colour's pixels: an object shows as one blob, and a colour's scattered specks
+    (a table grain of its hue, a one-pixel seam) add up to no object to fault."""
     classes = object_colours(ep)
     masks = segment(ep.images[HEAD_VIEW][frame], classes)
     need = MIN_VISIBLE_PX * _scale(ep) ** 2
-    return {c.name: int(masks[c.name].sum()) for c in classes if masks[c.name].sum() >= need}
+    out: dict[str, int] = {}
+    for c in classes:
+        n, _, stats, _ = cv2.connectedComponentsWithStats(masks[c.name].astype(np.uint8), connectivity=8)
+        largest = int(stats[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
+        if largest >= need:
+            out[c.name] = largest
+    return out
 
 
 def _object_region(mask: NDArray[np.bool_], grow: int) -> NDArray[np.bool_]:

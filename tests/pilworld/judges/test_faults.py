@@ -137,3 +137,20 @@ def test_bad_arguments_are_value_errors(episodes: list[Episode], rig: RigConfig)
     with pytest.raises(ValueError, match="fault"):
         inject("melt_table", ep, 20, rig, np.random.default_rng(0))
     assert set(FAULTS) == {"delete_object", "duplicate_object", "swap_views", "teleport_arm"}
+
+
+def test_specks_of_an_objects_hue_are_no_object_to_fault(episodes: list[Episode]) -> None:
+    """An object shows as a blob: a colour's scattered specks (a wood table's grain) are no object to delete or
+    duplicate, however many pixels they add up to."""
+    ep = episodes[0]
+    T = ep.length
+    head = np.full((T, 128, 128, 3), 128, np.uint8)
+    head[:, 60:66, 60:66] = (220, 30, 30)  # a red object throughout
+    head[:3, 20:25, 20:25] = (0, 200, 200)  # a cyan object at the start (so its colour is found) …
+    for r in range(4, 124, 8):  # … gone later, where 2x2 cyan specks cover the image: 225 pixels, no blob
+        for c in range(4, 56, 8):
+            head[3:, r : r + 2, c : c + 2] = (0, 200, 200)
+    scene = dataclasses.replace(ep, images={**ep.images, HEAD_VIEW: head})
+    assert len(object_colours(scene)) == 2
+    seen = visible_objects(scene, T // 2)
+    assert list(seen.values()) == [36]  # the red object only; summed, the specks would have been the largest
