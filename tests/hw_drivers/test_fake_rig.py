@@ -106,7 +106,11 @@ def _replayed_on_fake_rig(
         _reset_timing(station)
         env = RobotEnv(station.robot, spec, pace=True)
         env.reset(start)
-        frames = 1 + sum(len(env.step(chunk).observations) for chunk in chunks)
+        try:
+            frames = 1 + sum(len(env.step(chunk).observations) for chunk in chunks)
+        except RobotError:  # e.g. a watchdog stop after a pause of the machine's making
+            _skip_if_paused(_timing(station), "replayed chunks")
+            raise
         _skip_if_paused(_timing(station), "replayed chunks")
         verdicts = station.verdicts(sub, CKPT, 0, frames)
         poses = {n: np.asarray(p) for n, p in station.fake.object_poses().items()}
