@@ -78,6 +78,7 @@ class Thresholds:
     grip_change: float = 0.05  # a gripper whose opening changes this much over two frames acts on what it touches
     acting_reach_px: float = 16.0  # ... and what it squeezes out, drops or lets go may land this far from it
     faint_object_px: float = 24.0  # a blob of only faded pixels smaller than this is a speck, not an object
+    faint_margin: float = 0.04  # ... as is one of any size whose mean saturation passes the faded test by less
     texture_frames: int = 3  # start frames a colour's speckle is counted in (see hallucination_scene.table_texture)
     texture_ratio: float = 1.0  # a colour is the table's texture when its faded speckle outnumbers its object pixels
     texture_specks: int = 3  # ... in at least this many separate specks
@@ -274,11 +275,19 @@ class _ObjectFrames:
         return False
 
     def faint(self, blob: Mask, t: int) -> bool:
-        """Is ``blob`` at ``t`` a speck of faded pixels only (none fully saturated) and small? A table's grain of an
-        object's hue (a warm wood table under warm light) passes the faded colour test by a hair and drops out of it
-        with camera noise or a passing shadow; a washed-out object in a world model's frame is larger."""
-        small = float(blob.sum()) < self.th.faint_object_px * self.scene.scale**2
-        return small and not (blob & self.scene.colourful[t]).any()
+        """Is ``blob`` at ``t`` the table's grain: faded pixels only (none fully saturated), and either small or
+        passing the faded colour test by a hair (mean saturation within ``faint_margin`` of it)? A warm wood
+        table's grains under a warm light sit at saturation 0.22-0.25, just over the test, and drop out of it with
+        camera noise or a passing shadow; a washed-out object in a world model's frame is larger, or more
+        saturated where it is faded."""
+        if (blob & self.scene.colourful[t]).any():
+            return False
+        if float(blob.sum()) < self.th.faint_object_px * self.scene.scale**2:
+            return True
+        px = self.scene.images[t][blob].astype(np.float64)
+        hi = px.max(axis=1)
+        saturation = float(np.mean((hi - px.min(axis=1)) / np.maximum(hi, 1.0)))
+        return saturation < self.th.faded_saturation + self.th.faint_margin
 
     def vanished(self, t: int, c: int) -> list[Mask]:
         """Blobs of ``c`` at ``t - 1`` with nothing of ``c`` near them at ``t`` and no physical explanation."""

@@ -218,8 +218,12 @@ def test_a_faint_speck_of_an_objects_hue_is_no_object(episodes: list[Episode], r
     )
     assert not solid.faint(spot, t) and len(solid.appeared(t, 0)) == 1
     big = np.zeros_like(spot)
-    big[4:10, 58:64] = True  # 36 px: a washed-out object, not a speck
-    assert not faint.faint(big, t)
+    big[4:10, 58:64] = True  # 36 px, saturation 0.25: grain, passing the faded test by a hair
+    images[t:, big] = (200, 150, 150)
+    grain = _ObjectFrames(dataclasses.replace(scene, images=images), th)
+    assert grain.faint(big, t)
+    images[t:, big] = (200, 144, 144)  # saturation 0.28: short of saturated, well over faded: a washed-out object
+    assert not _ObjectFrames(dataclasses.replace(scene, images=images), th).faint(big, t)
 
 
 def test_findings_are_ordered_and_name_a_category(episodes: list[Episode], rig: RigConfig) -> None:
