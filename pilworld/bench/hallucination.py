@@ -37,7 +37,7 @@ from pilworld.judges.hallucination_checks import Thresholds
 
 # The acceptance of docs/judges.md, "Injected faults and the benchmark":
 DETECTION_TARGET = 0.90  # frame k ± 1 found in at least 90 % of faulted episodes
-FALSE_POSITIVE_LIMIT = 0.10  # ... and at most 10 % of clean episodes flagged
+FALSE_POSITIVE_LIMIT = 0.05  # ... and at most 5 % of clean real episodes flagged
 
 
 def _category(reason: str) -> str:

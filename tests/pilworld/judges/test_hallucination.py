@@ -251,7 +251,7 @@ def test_bad_episodes_are_refused(episodes: list[Episode], rig: RigConfig) -> No
 @pytest.mark.slow
 @pytest.mark.timeout(3600)
 def test_acceptance_on_fresh_seeds(tmp_path: Path) -> None:
-    """Acceptance (docs/judges.md): frame k ± 1 found in ≥ 90 % of faulted real episodes, ≤ 10 % of clean ones flagged.
+    """Acceptance (docs/judges.md): frame k ± 1 found in ≥ 90 % of faulted real episodes, ≤ 5 % of clean ones flagged.
 
     Seeds 4,000,000+ are reserved for this measurement (never used to tune the detector):
     ``pilworld sim collect --task all --checkpoint all --episodes 2 --seed 4000000`` — 80 episodes.
@@ -279,7 +279,7 @@ def test_acceptance_on_fresh_seeds(tmp_path: Path) -> None:
     for fault, stats in report["faults"].items():
         assert stats["n"] >= 30, fault
         assert stats["detection_rate"] >= 0.90, (fault, stats)
-    assert report["clean"]["false_positive_rate"] <= 0.10
+    assert report["clean"]["false_positive_rate"] <= 0.05
 
 
 @pytest.mark.slow  # two varied-look subtasks simulated (~40 s): shadow-casting light, textured table
