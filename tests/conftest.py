@@ -27,27 +27,14 @@ SERIAL = (
     "tests/pilworld/paired/test_task_files.py",
     "tests/pilworld/report/test_browser_under_load.py",
 )
-# Folders whose conftest builds session fixtures (a paired run, a training set): one xdist worker takes the whole
-# folder, so each is built once. Every other file goes to one worker whole (its module fixtures built once).
-SHARED_SESSION = (
-    "tests/pilworld/annotate/",
-    "tests/pilworld/report/",
-    "tests/pilworld/world_model/composite/",
-    "tests/pilworld/world_model/training/",
-)
 
 
-@pytest.hookimpl(tryfirst=True)  # before ``-m`` deselects by marker
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    xdist = config.pluginmanager.hasplugin("xdist")
-    for item in items:
-        path = Path(str(item.fspath)).resolve()
-        rel = path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else path.as_posix()
-        if rel.startswith(SERIAL):
-            item.add_marker(pytest.mark.serial)
-        if xdist:
-            group = next((folder for folder in SHARED_SESSION if rel.startswith(folder)), rel)
-            item.add_marker(pytest.mark.xdist_group(group))
+def pytest_itemcollected(item: pytest.Item) -> None:
+    """``serial`` by path, as each test is collected (before ``-m`` deselects by marker)."""
+    path = Path(str(item.fspath)).resolve()
+    rel = path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else path.as_posix()
+    if rel.startswith(SERIAL):
+        item.add_marker(pytest.mark.serial)
 
 
 @pytest.fixture(scope="session")
