@@ -122,9 +122,8 @@ def _serve(conn: Connection, rig_path: str, seed: int, subtask: int) -> None:
                 break
             try:
                 if op == "timing":
-                    timing = backend.timing()
-                    gaps = {side: c.cycle_gap_max_s for side, c in controllers.items()}
-                    conn.send(("ok", {**timing, "controller_gap_max_s": max(gaps.values(), default=0.0)}))
+                    gap = max((c.cycle_gap_max_s for c in controllers.values()), default=0.0)
+                    conn.send(("ok", {**backend.timing(), "controller_gap_max_s": gap}))
                     continue
                 result = _handle(backend, faults, op, kwargs, person)
                 if op == "reset":  # a new subtask: the timing record starts afresh (backend.timing() does too)

@@ -44,7 +44,7 @@ from pilworld.judges.hallucination_scene import (
     dilate,
     learn_table,
     table_mask,
-    table_texture,
+    without_table_texture,
 )
 from pilworld.perception.colour import ColourClass, segment
 from pilworld.perception.objects import discover_colours_over
@@ -52,7 +52,6 @@ from pilworld.types import HEAD_VIEW
 
 FAULTS: tuple[str, ...] = ("delete_object", "duplicate_object", "swap_views", "teleport_arm")
 MIN_VISIBLE_PX = 10  # an object's largest blob must show this many head-view pixels at k-1 to be faulted (at 128²)
-TEXTURE_FRAMES = 3  # start frames in which a colour's specks mark it as the table's texture (as the detector's)
 
 
 class FaultError(ValueError):
@@ -76,10 +75,8 @@ def object_colours(ep: Episode) -> list[ColourClass]:
     no object deleted. No arms are drawn here (the faults need no rig); arm pixels pass no colour test anyway.
     """
     head = ep.images[HEAD_VIEW]
-    found = discover_colours_over(head)
-    n = min(TEXTURE_FRAMES, len(head))
-    texture = table_texture(head[:n], found, np.zeros(head.shape[:1] + head.shape[1:3], np.uint8)[:n], scale=_scale(ep))
-    classes = [c for c, grain in zip(found, texture, strict=True) if not grain]
+    no_arms = np.zeros(head.shape[:3], np.uint8)
+    classes = without_table_texture(head, discover_colours_over(head), no_arms, scale=_scale(ep))
     if not classes:
         raise FaultError(f"task {episode_task(ep)!r} ({ep.task!r}): no coloured object visible in {HEAD_VIEW}")
     return classes

@@ -60,7 +60,7 @@ from pilworld.judges.hallucination_scene import (
     shadow_tint,
     smooth,
     table_mask,
-    table_texture,
+    without_table_texture,
 )
 from pilworld.judges.hallucination_wrist import check_wrist_objects
 from pilworld.perception.objects import discover_colours_over
@@ -89,17 +89,16 @@ def head_scene(
     th = thresholds or Thresholds()
     scale = cam.width / REFERENCE_WIDTH
     # A colour that is the table's own grain, not an object, is no object class (a wood table's warm specks).
-    n = min(th.texture_frames, len(images))
-    texture = table_texture(
-        images[:n],
+    classes = without_table_texture(
+        images,
         classes,
-        arms.whole[:n],
+        arms.whole,
+        frames=th.texture_frames,
         faded_saturation=th.faded_saturation,
         ratio=th.texture_ratio,
         specks=th.texture_specks,
         scale=scale,
     )
-    classes = [c for c, grain in zip(classes, texture, strict=True) if not grain]
     labels = object_labels(images, classes, th.faded_saturation)
     colourful = colourful_mask(images)
     # The table's colour from the start frame (real in both branches), away from arms and objects: the

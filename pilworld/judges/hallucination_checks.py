@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from pilworld.judges.hallucination_scene import ArmViews, Mask, channel_max, dilate, erode
+from pilworld.judges.hallucination_scene import TEXTURE_FRAMES, ArmViews, Mask, channel_max, channel_min, dilate, erode
 from pilworld.perception.colour import ColourClass
 
 # Categories (paper appendix, "Hallucination-free ratio"): the reason of a verdict starts with one of these.
@@ -79,7 +79,7 @@ class Thresholds:
     acting_reach_px: float = 16.0  # ... and what it squeezes out, drops or lets go may land this far from it
     faint_object_px: float = 24.0  # a blob of only faded pixels smaller than this is a speck, not an object
     faint_margin: float = 0.04  # ... as is one of any size whose mean saturation passes the faded test by less
-    texture_frames: int = 3  # start frames a colour's speckle is counted in (see hallucination_scene.table_texture)
+    texture_frames: int = TEXTURE_FRAMES  # start frames a colour's speckle is counted in (hallucination_scene)
     texture_ratio: float = 1.0  # a colour is the table's texture when its faded speckle outnumbers its object pixels
     texture_specks: int = 3  # ... in at least this many separate specks
 
@@ -285,8 +285,8 @@ class _ObjectFrames:
         if float(blob.sum()) < self.th.faint_object_px * self.scene.scale**2:
             return True
         px = self.scene.images[t][blob].astype(np.float64)
-        hi = px.max(axis=1)
-        saturation = float(np.mean((hi - px.min(axis=1)) / np.maximum(hi, 1.0)))
+        hi = channel_max(px)
+        saturation = float(np.mean((hi - channel_min(px)) / np.maximum(hi, 1.0)))
         return saturation < self.th.faded_saturation + self.th.faint_margin
 
     def vanished(self, t: int, c: int) -> list[Mask]:

@@ -378,6 +378,9 @@ def object_labels(images: Image, classes: list[ColourClass], faded_saturation: f
     return out
 
 
+TEXTURE_FRAMES = 3  # start frames (real in both branches) in which a colour's specks mark it as texture
+
+
 def table_texture(
     images: Image,
     classes: list[ColourClass],
@@ -396,26 +399,49 @@ def table_texture(
     discovered, and its specks come and go with camera noise and shadows. An object is a compact blob of
     fully saturated pixels with a faded rim. So a class whose faded pixels away from its own saturated ones
     (beyond a rim of 3 px) outnumber those saturated pixels ``ratio`` times over, in ``specks`` or more specks,
-    over the start frames (real in both branches), is texture: measured at seeds 4,600,000+, the wood's
-    classes had 6-33 times more speck pixels than saturated ones in 8-23 specks; the objects' below 0.3.
+    over the start frames (real in both branches), is texture: measured at seeds 4,600,000+ (every third
+    episode), texture classes had 1.1-490 times more speck pixels than saturated ones in 3-29 specks; object
+    classes up to 8 times, but in at most 2 specks.
     """
-    out: list[bool] = []
-    strict = [segment(im, classes, min_value=0.2) for im in images] if classes else []
-    faded = [segment(im, classes, min_saturation=faded_saturation, min_value=0.45) for im in images] if classes else []
+    if not classes:
+        return []
+    strict = [segment(im, classes, min_value=0.2) for im in images]
+    faded = [segment(im, classes, min_saturation=faded_saturation, min_value=0.45) for im in images]
+    away = [~dilate(a, 2 * scale) for a in arms]
     rim = 3.0 * scale
+    out: list[bool] = []
     for c in classes:
-        solid = speckle = 0
-        count = 0
+        solid = speckle = count = 0
         for t in range(len(images)):
-            away = ~dilate(arms[t], 2 * scale)
-            s = strict[t][c.name] & away
-            f = faded[t][c.name] & away & ~dilate(s, rim)
+            s = strict[t][c.name] & away[t]
+            f = faded[t][c.name] & away[t] & ~dilate(s, rim)
             solid += int(s.sum())
             speckle += int(f.sum())
             n, _ = cv2.connectedComponents(f.astype(np.uint8), connectivity=8)
             count = max(count, n - 1)
         out.append(count >= specks and speckle >= ratio * max(solid, 1))
     return out
+
+
+def without_table_texture(
+    images: Image,
+    classes: list[ColourClass],
+    arms: NDArray[np.uint8],
+    *,
+    frames: int = TEXTURE_FRAMES,
+    faded_saturation: float = 0.22,
+    ratio: float = 1.0,
+    specks: int = 3,
+    scale: float = 1.0,
+) -> list[ColourClass]:
+    """``classes`` less those :func:`table_texture` finds to be the table's texture in the first ``frames`` of
+    ``images`` ``(T, H, W, 3)`` (arms drawn in ``arms`` ``(T, H, W)``): the object colours, for the detector and
+    the fault injection alike."""
+    n = min(frames, len(images))
+    grain = table_texture(
+        images[:n], classes, arms[:n], faded_saturation=faded_saturation, ratio=ratio, specks=specks, scale=scale
+    )
+    return [c for c, texture in zip(classes, grain, strict=True) if not texture]
 
 
 def colourful_mask(images: Image, min_saturation: float = 0.3, min_value: float = 0.2) -> Mask:
