@@ -44,6 +44,7 @@ from pilworld.judges.hallucination_checks import (
     check_objects,
     check_views,
 )
+from pilworld.judges.hallucination_ego import check_wrist_motion
 from pilworld.judges.hallucination_scene import (
     REFERENCE_WIDTH,
     ArmShape,
@@ -148,6 +149,7 @@ def find_hallucinations(
         check_arms(scene, th),
         check_objects(scene, th),
         check_wrist_objects(scene, wrists, rig, episode.state, th),
+        check_wrist_motion(wrists, rig, episode.state, th),
     )
     found = [f for f in checks if f is not None]
     return sorted(found, key=lambda f: (f.frame, CATEGORIES.index(f.category)))

@@ -82,6 +82,12 @@ class Thresholds:
     texture_frames: int = TEXTURE_FRAMES  # start frames a colour's speckle is counted in (hallucination_scene)
     texture_ratio: float = 1.0  # a colour is the table's texture when its faded speckle outnumbers its object pixels
     texture_specks: int = 3  # ... in at least this many separate specks
+    ego_blur_px: float = 1.0  # Gaussian σ before a wrist frame is compared with its predecessor (hallucination_ego)
+    ego_min_shown: float = 0.09  # ... over at least this share of the image, shown by both frames, not its gripper
+    ego_residual: float = 2.0  # levels (median, grey): below this the camera's own motion explains the frame
+    ego_ratio: float = 2.5  # a later pose must explain a frame this many times better to be a jump ahead
+    ego_floor: float = 0.3  # levels: a later pose's residual counts as at least this (sensor noise)
+    ego_lookahead: int = 25  # frames ahead a wrist view's jump is looked for
 
 
 @dataclass(frozen=True, eq=False)
