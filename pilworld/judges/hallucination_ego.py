@@ -30,6 +30,7 @@ from pilworld.judges.hallucination_scene import dilate
 from pilworld.judges.hallucination_wrist import WristCamera
 
 PLANE_Z = 0.0  # the table surface [m]: what most of a wrist view shows
+_NOTHING = -1e4  # a pixel value that marks "nothing to compare" in a warped frame
 _PROBES = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5], [0.25, 0.7]])  # × image size
 
 
@@ -66,6 +67,7 @@ class _View:
         )
         self.own = dilate(_hull(wrist_signature(frames, th.signature_dark)), 2 * s)
         self.min_valid = th.ego_min_shown * cam.width * cam.height
+        self.source = np.where(self.own, np.float32(_NOTHING), self.grey)
 
     def residual(self, t: int, at: int, seen_from: int) -> float:
         """Frame ``t - 1`` (taken at pose ``seen_from``) carried to pose ``at``, against frame ``t``: the median
@@ -75,7 +77,9 @@ class _View:
             return float("nan")
         size = (self.cam.width, self.cam.height)
         flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
-        pred = cv2.warpPerspective(self.grey[t - 1], H, size, flags=flags, borderValue=-1.0)
+        # The own gripper moves with the camera, not with the table: its pixels (marked far below 0, so any
+        # interpolation touching one stays below 0) carry nothing, like the pixels from outside the frame.
+        pred = cv2.warpPerspective(self.source[t - 1], H, size, flags=flags, borderValue=_NOTHING)
         shown = (pred >= 0) & ~self.own
         if shown.sum() < self.min_valid:
             return float("nan")
