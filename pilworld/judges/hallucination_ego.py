@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from pilworld.config.rig import RigConfig
 from pilworld.judges.hallucination_checks import ARM_MOTION, Finding, Thresholds, wrist_signature
-from pilworld.judges.hallucination_scene import dilate
+from pilworld.judges.hallucination_scene import convex_hull, dilate
 from pilworld.judges.hallucination_wrist import WristCamera
 
 PLANE_Z = 0.0  # the table surface [m]: what most of a wrist view shows
@@ -47,15 +47,6 @@ def plane_homography(
     return None if H is None else np.asarray(H, np.float64)
 
 
-def _hull(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The convex hull of ``mask``: a gripper's fingers and what they hold, which move with the camera."""
-    out = np.zeros(mask.shape, np.uint8)
-    pts = cv2.findNonZero(mask.astype(np.uint8))
-    if pts is not None:
-        cv2.fillConvexPoly(out, cv2.convexHull(pts), 1)
-    return out.astype(bool)
-
-
 class _View:
     """One wrist view's frames, blurred grey, and the residual of predicting frame ``t`` from ``t - 1``."""
 
@@ -65,7 +56,9 @@ class _View:
         self.grey = np.stack(
             [cv2.GaussianBlur(f.mean(axis=2, dtype=np.float32), (0, 0), th.ego_blur_px * s) for f in frames]
         )
-        self.own = dilate(_hull(wrist_signature(frames, th.signature_dark)), 2 * s)
+        # What moves with the camera rather than with the table: pixels dark in every frame of the episode
+        # (its own gripper; the arm's own shadow), each part filled to its hull (what the fingers hold).
+        self.own = dilate(convex_hull(wrist_signature(frames, th.signature_dark, len(frames))), 2 * s)
         self.min_valid = th.ego_min_shown * cam.width * cam.height
         self.source = np.where(self.own, np.float32(_NOTHING), self.grey)
 

@@ -457,6 +457,18 @@ def colourful_mask(images: Image, min_saturation: float = 0.3, min_value: float 
     return out
 
 
+def convex_hull(mask: NDArray[np.bool_]) -> Mask:
+    """Each 8-connected part of ``mask`` filled to its convex hull (empty stays empty): a gripper's fingers
+    and what they hold between them, without bridging to a separate dark patch (the arm's own shadow)."""
+    m = np.asarray(mask, np.uint8)
+    out = np.zeros(m.shape, np.uint8)
+    n, labels = cv2.connectedComponents(m, connectivity=8)
+    for i in range(1, n):
+        pts = cv2.findNonZero((labels == i).astype(np.uint8))
+        cv2.fillConvexPoly(out, cv2.convexHull(pts), 1)
+    return out.astype(bool)
+
+
 def disk(radius_px: float) -> NDArray[np.uint8]:
     """A filled disc structuring element of the given radius (at least a single pixel)."""
     r = max(0, round(radius_px))

@@ -31,10 +31,12 @@ from pilworld.judges.hallucination_checks import (
     HeadScene,
     Thresholds,
     _centre,
+    wrist_signature,
 )
 from pilworld.judges.hallucination_scene import (
     Mask,
     channel_max,
+    convex_hull,
     dilate,
     learn_table,
     object_labels,
@@ -152,6 +154,12 @@ def _check_view(
     near = th.wrist_step_px * s
     shape = (cam.height, cam.width)
 
+    own_grip = np.asarray(state[:, LEFT_GRIP if cam.arm == 0 else RIGHT_GRIP], dtype=np.float64)
+
+    def holding(t: int, t_to: int) -> bool:
+        """Only a closed gripper holds anything (an open one's camera sees what rests on the table)."""
+        return min(own_grip[t], own_grip[t_to]) < th.closed_grip
+
     def gone(t: int, c: int, blob: Mask, t_to: int) -> tuple[bool, Mask]:
         """Is ``blob`` of class ``c`` at ``t`` missing at ``t_to`` (where it should show, nothing covers it)?"""
         now = labels[t_to] == c + 1
@@ -162,7 +170,9 @@ def _check_view(
         k = int(blob.sum())
         if now.sum() >= 0.25 * k:
             return False, blob  # still in view somewhere (a held object swings in its grasp; a ring splits)
-        if (dilate(blob, near) & now).sum() >= 0.25 * k or (blob & cover).sum() >= th.wrist_covered_fraction * k:
+        if holding(t, t_to) and (
+            (dilate(blob, near) & now).sum() >= 0.25 * k or (blob & cover).sum() >= th.wrist_covered_fraction * k
+        ):
             return False, blob  # held by this camera's gripper (it stays put in the image), or covered there
         if on_table.sum() < 0.6 * k:
             return False, on_table  # resting on the table, the camera motion takes it (mostly) out of view
@@ -170,10 +180,10 @@ def _check_view(
         seen = (dilate(on_table, near) & now).sum() >= 0.25 * k
         return not (seen or (on_table & cover).sum() >= th.wrist_covered_fraction * k), on_table
 
-    own_grip = np.asarray(state[:, LEFT_GRIP if cam.arm == 0 else RIGHT_GRIP], dtype=np.float64)
+    # What this gripper holds sits between its fingers: inside the hull of the gripper's own pixels.
+    between = dilate(convex_hull(wrist_signature(frames, th.signature_dark)), near)
     for t in range(1, T - 1):
-        if own_grip[t] - own_grip[t - 1] > 0.05:
-            continue  # this gripper opens: what it held drops, close to the camera, anywhere in view
+        opens = own_grip[t] - own_grip[t - 1] > 0.05
         for c, cls in enumerate(head.classes):
             prev = (labels[t - 1] == c + 1).astype(np.uint8)
             n, lab, stats, _ = cv2.connectedComponentsWithStats(prev, connectivity=8)
@@ -181,10 +191,13 @@ def _check_view(
                 if stats[i, cv2.CC_STAT_AREA] < min_px:
                     continue
                 blob = lab == i
+                if opens and (blob & between).sum() >= 0.5 * stats[i, cv2.CC_STAT_AREA]:
+                    continue  # this gripper opens on it: what it held drops, close to the camera, anywhere in view
                 missing, where = gone(t - 1, c, blob, t)
                 if not missing or _carried_elsewhere(head, state, t, c, th, cam.arm):
                     continue
-                if (head.labels[t] == c + 1).sum() >= th.min_object_px * head.scale**2:
+                in_head = int((head.labels[t] == c + 1).sum())
+                if in_head >= max(th.min_object_px * head.scale**2, 0.25 * int((head.labels[t - 1] == c + 1).sum())):
                     continue  # the head view still sees it: it moved on its own (knocked, dropped) faster than foreseen
                 if gone(t - 1, c, blob, t + 1)[0]:
                     u, v = _centre(where)
