@@ -158,7 +158,7 @@ def _check_view(
 
     def holding(t: int, t_to: int) -> bool:
         """Only a closed gripper holds anything (an open one's camera sees what rests on the table)."""
-        return min(own_grip[t], own_grip[t_to]) < th.closed_grip
+        return bool(min(own_grip[t], own_grip[t_to]) < th.closed_grip)
 
     def gone(t: int, c: int, blob: Mask, t_to: int) -> tuple[bool, Mask]:
         """Is ``blob`` of class ``c`` at ``t`` missing at ``t_to`` (where it should show, nothing covers it)?"""
