@@ -86,6 +86,14 @@ def _moving_frame(rig: RigConfig, state: NDArray[np.float32], name: str, after: 
     raise AssertionError(f"{name} never moves in this episode")
 
 
+def _jumped(rig: RigConfig, episode: Episode, texture: NDArray[np.float32]) -> tuple[int, dict[str, NDArray[np.uint8]]]:
+    """(k, the wrist views) with every view :data:`JUMP` frames ahead of the state from ``k`` on."""
+    k = _moving_frame(rig, episode.state, VIEWS[1], 10)
+    shown = np.arange(episode.length)
+    shown[k:] = np.minimum(shown[k:] + JUMP, episode.length - 1)
+    return k, _wrists(rig, episode.state, texture, shown=shown)
+
+
 def test_the_plane_homography_carries_table_points_between_poses(rig: RigConfig, episode: Episode) -> None:
     cam = WristCamera.from_rig(rig, VIEWS[0])
     poses = cam.poses(rig, episode.state)
@@ -113,10 +121,7 @@ def test_a_view_that_lags_its_state_by_a_frame_is_not_flagged(rig: RigConfig, ep
 
 
 def test_a_view_that_jumps_ahead_is_found_at_its_frame(rig: RigConfig, episode: Episode) -> None:
-    k = _moving_frame(rig, episode.state, VIEWS[1], 10)
-    shown = np.arange(episode.length)
-    shown[k:] = np.minimum(shown[k:] + JUMP, episode.length - 1)
-    wrists = _wrists(rig, episode.state, _texture(2, 40), shown=shown)
+    k, wrists = _jumped(rig, episode, _texture(2, 40))
     found = check_wrist_motion(wrists, rig, episode.state, Thresholds())
     assert found is not None and found.frame == k, found
     assert found.category == ARM_MOTION and "jumped ahead" in found.detail
@@ -135,18 +140,12 @@ def test_a_shadow_sweeping_over_the_table_is_not_a_jump(rig: RigConfig, episode:
 def test_a_uniform_table_shows_no_jump_and_none_is_claimed(rig: RigConfig, episode: Episode) -> None:
     """Without texture nothing tells the poses apart: the check stays silent (the head view's arm check is the
     one that sees a jump there)."""
-    k = _moving_frame(rig, episode.state, VIEWS[1], 10)
-    shown = np.arange(episode.length)
-    shown[k:] = np.minimum(shown[k:] + JUMP, episode.length - 1)
-    wrists = _wrists(rig, episode.state, _texture(4, 0.0), shown=shown)
+    _, wrists = _jumped(rig, episode, _texture(4, 0.0))
     assert check_wrist_motion(wrists, rig, episode.state, Thresholds()) is None
 
 
 def test_views_the_rig_does_not_know_or_of_another_size_are_left_alone(rig: RigConfig, episode: Episode) -> None:
-    k = _moving_frame(rig, episode.state, VIEWS[1], 10)
-    shown = np.arange(episode.length)
-    shown[k:] = np.minimum(shown[k:] + JUMP, episode.length - 1)
-    wrists = _wrists(rig, episode.state, _texture(5, 40), shown=shown)
+    _, wrists = _jumped(rig, episode, _texture(5, 40))
     renamed = {"cam_other": wrists[VIEWS[1]]}
     assert check_wrist_motion(renamed, rig, episode.state, Thresholds()) is None
     small = {VIEWS[1]: wrists[VIEWS[1]][:, ::2, ::2].copy()}
