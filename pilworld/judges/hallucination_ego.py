@@ -81,14 +81,16 @@ class _View:
     def jump(self, t: int) -> tuple[float, int] | None:
         """(near residual / best far residual, the far frame) when frame ``t`` jumped ahead, else None."""
         T = len(self.grey)
-        near = [
-            self.residual(t, a, b)
-            for a, b in ((t, t - 1), (t - 1, max(t - 2, 0)), (t - 1, t - 1), (min(t + 1, T - 1), t - 1))
-        ]
-        if not np.isfinite(near).any():
-            return None
-        r_near = float(np.nanmin(near))
-        if r_near < self.th.ego_residual:
+        # Standing still, the camera's own motion, a frame of lag either way: the first that explains the frame
+        # ends the test (most frames), so the far poses are searched only where none does.
+        r_near = float("inf")
+        for a, b in ((t - 1, t - 1), (t, t - 1), (t - 1, max(t - 2, 0)), (min(t + 1, T - 1), t - 1)):
+            r = self.residual(t, a, b)
+            if r < self.th.ego_residual:
+                return None
+            if r < r_near:
+                r_near = r
+        if not np.isfinite(r_near):
             return None
         best, at = float("inf"), -1
         for j in range(2, self.th.ego_lookahead + 1):
