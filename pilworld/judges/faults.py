@@ -255,15 +255,16 @@ def teleport_arm(ep: Episode, k: int, rig: RigConfig, *, min_jump_px: float = 20
 def inject(fault: str, ep: Episode, k: int, rig: RigConfig, rng: np.random.Generator) -> Episode:
     """Apply ``fault`` (one of :data:`FAULTS`) at ``k``, drawing its free choices from ``rng``.
 
-    The object to delete or copy is drawn among those visible in the head view at ``k - 1``; the wrist
-    view to swap with, among the wrist views.
+    The object to delete or copy is drawn among those visible in the head view at ``k - 1`` and at ``k``: the
+    fault's first frame must show what it changes (an object an arm hides at ``k`` would vanish unseen, the
+    first sign of it frames later, when the arm has moved on); the wrist view to swap with, among the wrist
+    views.
     """
     if fault in ("delete_object", "duplicate_object"):
-        seen = sorted(visible_objects(ep, k - 1))
-        if fault == "duplicate_object":
-            seen = [n for n in seen if n in visible_objects(ep, k)]
+        now = visible_objects(ep, k)
+        seen = [n for n in sorted(visible_objects(ep, k - 1)) if n in now]
         if not seen:
-            raise FaultError(f"no object visible in {HEAD_VIEW} at frame {k - 1}")
+            raise FaultError(f"no object visible in {HEAD_VIEW} at frames {k - 1} and {k}")
         colour = seen[int(rng.integers(len(seen)))]
         if fault == "delete_object":
             return delete_object(ep, k, colour)

@@ -20,6 +20,7 @@ from pilworld.judges.faults import (
     teleport_arm,
     visible_objects,
 )
+from pilworld.judges.hallucination_scene import dilate
 from pilworld.perception.colour import segment
 from pilworld.types import HEAD_VIEW
 from tests.pilworld.judges.hallucination_data import clean_episodes, sim_rig
@@ -125,6 +126,28 @@ def test_faults_that_cannot_be_applied_raise_fault_error(episodes: list[Episode]
         duplicate_object(blank, 20)
     with pytest.raises(FaultError):
         inject("delete_object", blank, 20, rig, np.random.default_rng(0))
+
+
+def test_a_deletion_or_copy_is_drawn_among_objects_its_first_frame_shows(
+    episodes: list[Episode], rig: RigConfig
+) -> None:
+    """An object an arm hides at k would vanish unseen: the fault must start where the object is in view."""
+    ep = episodes[0]
+    for k in range(ep.length // 3, ep.length - 1):
+        seen = sorted(set(visible_objects(ep, k - 1)) & set(visible_objects(ep, k)))
+        if len(seen) >= 2:
+            break
+    else:
+        raise AssertionError("no frame with two objects in view")
+    hidden = seen[0]
+    head = ep.images[HEAD_VIEW].copy()
+    mask = segment(head[k], object_colours(ep))[hidden]
+    head[k][dilate(mask, 2)] = (90, 90, 90)  # an arm over it at k only
+    covered = dataclasses.replace(ep, images={**ep.images, HEAD_VIEW: head})
+    assert hidden not in visible_objects(covered, k) and hidden in visible_objects(covered, k - 1)
+    for fault in ("delete_object", "duplicate_object"):
+        drawn = {inject(fault, covered, k, rig, np.random.default_rng(s)).extra["fault"]["object"] for s in range(12)}
+        assert hidden not in drawn and drawn, (fault, drawn)
 
 
 def test_bad_arguments_are_value_errors(episodes: list[Episode], rig: RigConfig) -> None:
