@@ -111,7 +111,7 @@ def head_scene(
     no_arm, empty = empty_pixels(arms.whole, (labels > 0) | colourful, th.background_margin_px * scale)
     background = learn_background(blurred, no_arm, empty)
     chroma, bright = ratio_chroma(blurred, background)
-    shadows = shadow_tint(chroma, bright, background, empty)
+    shadows = shadow_tint(chroma, bright, background, empty, th.shadow_frames)
     colour = table_mask(images, table)
     explained = background_table(blurred, background, colour, max_difference=th.background_difference)
     return HeadScene(

@@ -62,6 +62,7 @@ class Thresholds:
     arm_visible: float = 0.97  # below this arm visibility the drawn arm alone may hide an object (flat look: 1.0)
     shadow_tint_distance: float = 0.025  # a shadow's ratio chromaticity lies this close to the episode's shadow tint
     shadow_ratio_factor: float = 1.6  # ... and scales its brightness as the episode's shadows do, to this factor
+    shadow_frames: int = 16  # the first frames the episode's shadow tint is learnt from (the light does not change)
     background_blur_px: float = 1.0  # Gaussian σ before comparing a frame with the learnt empty scene
     background_margin_px: float = 4.0  # pixels this close to a predicted arm or a seen object are not "empty"
     background_difference: float = 10.0  # levels (any channel, blurred) a pixel may differ from the empty scene

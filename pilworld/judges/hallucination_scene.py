@@ -315,17 +315,24 @@ class Shadows:
     ratio: float
 
 
-def shadow_tint(chroma: NDArray[Any], bright: NDArray[Any], background: Background, empty: Mask) -> Shadows | None:
+def shadow_tint(
+    chroma: NDArray[Any], bright: NDArray[Any], background: Background, empty: Mask, frames: int
+) -> Shadows | None:
     """This episode's :class:`Shadows` from its :func:`ratio_chroma` and :func:`empty_pixels`: medians over the
-    empty pixels (every second frame) that are darker than the empty scene; None where there are too few (a
-    scene without cast shadows, such as the flat look)."""
-    free = empty[::2] & background.known[None]
-    dark = free & (bright[::2] >= 0.2) & (bright[::2] <= 0.85)
-    found = chroma[::2][dark]
+    empty pixels of the first ``frames`` frames that are darker than the empty scene; None where there are too
+    few (a scene without cast shadows, such as the flat look).
+
+    The light is the episode's, so its first frames tell it; a later stretch of wrong frames (a swapped view, a
+    world model's drift) would shift the median and leave the true shadows unexplained, before that stretch too.
+    """
+    n = min(max(frames, 1), chroma.shape[0])
+    free = empty[:n] & background.known[None]
+    dark = free & (bright[:n] >= 0.2) & (bright[:n] <= 0.85)
+    found = chroma[:n][dark]
     if found.shape[0] < max(SHADOW_MIN_SHARE * int(free.sum()), 50):
         return None
     return Shadows(
-        tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(bright[::2][dark]))
+        tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(bright[:n][dark]))
     )
 
 
