@@ -319,21 +319,26 @@ def shadow_tint(
     chroma: NDArray[Any], bright: NDArray[Any], background: Background, empty: Mask, frames: int
 ) -> Shadows | None:
     """This episode's :class:`Shadows` from its :func:`ratio_chroma` and :func:`empty_pixels`: medians over the
-    empty pixels of the first ``frames`` frames that are darker than the empty scene; None where there are too
-    few (a scene without cast shadows, such as the flat look).
+    empty pixels that are darker than the empty scene, in the first ``frames`` frames or, where those hold too
+    few, the first that hold enough (8 frames more at a time); None where the whole episode holds too few (a
+    scene without cast shadows, such as the flat look).
 
     The light is the episode's, so its first frames tell it; a later stretch of wrong frames (a swapped view, a
     world model's drift) would shift the median and leave the true shadows unexplained, before that stretch too.
     """
-    n = min(max(frames, 1), chroma.shape[0])
-    free = empty[:n] & background.known[None]
-    dark = free & (bright[:n] >= 0.2) & (bright[:n] <= 0.85)
-    found = chroma[:n][dark]
-    if found.shape[0] < max(SHADOW_MIN_SHARE * int(free.sum()), 50):
-        return None
-    return Shadows(
-        tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(bright[:n][dark]))
-    )
+    T = chroma.shape[0]
+    n = min(max(frames, 1), T)
+    while True:
+        free = empty[:n] & background.known[None]
+        dark = free & (bright[:n] >= 0.2) & (bright[:n] <= 0.85)
+        if int(dark.sum()) >= max(SHADOW_MIN_SHARE * int(free.sum()), 50):
+            found = chroma[:n][dark]
+            return Shadows(
+                tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(bright[:n][dark]))
+            )
+        if n >= T:
+            return None
+        n = min(n + 8, T)
 
 
 def shadow_like(
