@@ -327,18 +327,19 @@ def shadow_tint(
     world model's drift) would shift the median and leave the true shadows unexplained, before that stretch too.
     """
     T = chroma.shape[0]
+    free = empty & background.known[None]
+    dark = free & (bright >= 0.2) & (bright <= 0.85)
+    n_free = np.cumsum(free.sum(axis=(1, 2)))  # pixels counted in the first t + 1 frames
+    n_dark = np.cumsum(dark.sum(axis=(1, 2)))
     n = min(max(frames, 1), T)
-    while True:
-        free = empty[:n] & background.known[None]
-        dark = free & (bright[:n] >= 0.2) & (bright[:n] <= 0.85)
-        if int(dark.sum()) >= max(SHADOW_MIN_SHARE * int(free.sum()), 50):
-            found = chroma[:n][dark]
-            return Shadows(
-                tint=np.asarray(np.median(found, axis=0), dtype=np.float64), ratio=float(np.median(bright[:n][dark]))
-            )
+    while n_dark[n - 1] < max(SHADOW_MIN_SHARE * int(n_free[n - 1]), 50):
         if n >= T:
             return None
         n = min(n + 8, T)
+    return Shadows(
+        tint=np.asarray(np.median(chroma[:n][dark[:n]], axis=0), dtype=np.float64),
+        ratio=float(np.median(bright[:n][dark[:n]])),
+    )
 
 
 def shadow_like(
