@@ -62,6 +62,13 @@ def register(sub: Any) -> None:
         help="also read a crop of this many head pixels where a gripper last let go (0: off) [8..256]",
     )
     t.add_argument(
+        "--imagined",
+        type=float,
+        default=0.5,
+        help="share of training samples whose end frames are softened and tinted as a world model renders them "
+        "(default 0.5; 0: off) [0..1]",
+    )
+    t.add_argument(
         "--abstain-budget",
         type=float,
         default=0.04,
@@ -151,6 +158,8 @@ def _train(args: argparse.Namespace) -> int:
     check_count(args.seed, "--seed", SEED)
     if args.release_crop and not 8 <= args.release_crop <= 256:
         raise ValueError(f"--release-crop: expected 0 (off) or 8..256 pixels, got {args.release_crop}")
+    if not 0 <= args.imagined <= 1:
+        raise ValueError(f"--imagined: expected a share in 0..1, got {args.imagined}")
     if not 0 <= args.abstain_budget <= 0.9:
         raise ValueError(f"--abstain-budget: expected a share in 0..0.9, got {args.abstain_budget}")
     rig = _rig(args.rig)
@@ -162,6 +171,7 @@ def _train(args: argparse.Namespace) -> int:
         folds=args.folds,
         seed=args.seed,
         release_crop=args.release_crop,
+        imagined=args.imagined,
         abstain_budget=args.abstain_budget,
         **steps,
     )

@@ -107,7 +107,8 @@ def load_judge(folder: str | Path) -> JudgeFolder:
     try:
         spec = InputSpec.from_json(config["inputs"])
         known = {f.name for f in fields(TrainSettings)}
-        settings = TrainSettings(**{k: v for k, v in dict(config["settings"]).items() if k in known})
+        stored = {"imagined": 0.0} | dict(config["settings"])  # judges trained before that setting had none
+        settings = TrainSettings(**{k: v for k, v in stored.items() if k in known})
         folds = int(config["folds"])
         temperature, threshold = float(config["temperature"]), float(config["threshold"])
         instructions = {str(k): int(v) for k, v in dict(config["instructions"]).items()}

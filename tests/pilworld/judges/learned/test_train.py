@@ -172,3 +172,36 @@ def test_the_keypoint_encoder_gives_coordinates_in_the_image() -> None:
     assert net(torch.rand(3, 2, 6, 32, 32), torch.rand(3, 8), torch.rand(3, 80)).shape == (3,)
     with pytest.raises(ValueError, match="arch"):
         TrainSettings(arch="transformer")
+
+
+def test_the_imagined_look_softens_only_the_end_frames_of_chosen_samples() -> None:
+    import torch
+
+    from pilworld.judges.learned.inputs import InputSpec
+    from pilworld.judges.learned.train import _imagined_look, input_scales
+
+    frames = torch.zeros(8, 2, 6, 32, 32)
+    frames[:, :, :, 16, 16] = 1.0  # one bright pixel in the start and end frame of every input
+    out = _imagined_look(frames, torch.Generator().manual_seed(0), 1.0, [0.5, 2.0])
+    assert torch.equal(out[:, :, :3], frames[:, :, :3])  # the start frame is a real one: untouched
+    assert bool((out[:, 1, 3:, 16, 16] < 0.5).all())  # the end frame's pixel spread …
+    assert bool((out[:, 1, 3:, 16, 16] < out[:, 0, 3:, 16, 16]).all())  # … further where a pixel is finer
+    again = _imagined_look(frames, torch.Generator().manual_seed(0), 1.0, [0.5, 2.0])
+    assert torch.equal(out, again)  # seeded
+    assert torch.equal(_imagined_look(frames, torch.Generator().manual_seed(0), 0.0, [0.5, 2.0]), frames)
+    spec = InputSpec.from_views({"cam_high": (128, 128), "cam_left_wrist": (128, 128)}, 14, 64, release_crop=32)
+    assert input_scales(spec) == [0.5, 0.5, 2.0]
+    with pytest.raises(ValueError, match=r"imagined=1\.5"):
+        TrainSettings(imagined=1.5)
+
+
+def test_a_judge_saved_before_the_imagined_look_reads_back_without_it(trained: tuple[Path, Path]) -> None:
+    folder, _ = trained
+    config = json.loads((folder / CONFIG_FILE).read_text())
+    assert config["settings"]["imagined"] == SETTINGS.imagined
+    del config["settings"]["imagined"]
+    old = folder.parent / "old"
+    old.mkdir()
+    (old / CONFIG_FILE).write_text(json.dumps(config))
+    (old / WEIGHTS_FILE).write_bytes((folder / WEIGHTS_FILE).read_bytes())
+    assert load_judge(old).settings.imagined == 0.0
