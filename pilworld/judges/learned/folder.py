@@ -107,7 +107,7 @@ def load_judge(folder: str | Path) -> JudgeFolder:
     try:
         spec = InputSpec.from_json(config["inputs"])
         known = {f.name for f in fields(TrainSettings)}
-        stored = {"imagined": 0.0} | dict(config["settings"])  # judges trained before that setting had none
+        stored: dict[str, Any] = {"imagined": 0.0} | dict(config["settings"])  # judges trained before it: none
         settings = TrainSettings(**{k: v for k, v in stored.items() if k in known})
         folds = int(config["folds"])
         temperature, threshold = float(config["temperature"]), float(config["threshold"])
