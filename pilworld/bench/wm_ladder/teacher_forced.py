@@ -165,14 +165,17 @@ def teacher_forced_summary(
         "rounds": rows,
         "head": per_view.get(HEAD, {}),
         "all_views": per_view["all"],
-        "judges": _judges_summary([r["judges"] for _, r in records if "judges" in r]),
+        "judges": _judges_summary([(p.pair_id, r["judges"]) for p, r in records if "judges" in r]),
     }
 
 
-def _judges_summary(recs: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
-    """Each judge's agreement with the checker on the real episodes and on their teacher-forced re-renders."""
-    if not recs:
+def _judges_summary(named: Sequence[tuple[str, dict[str, Any]]]) -> dict[str, Any] | None:
+    """Each judge's agreement with the checker on the real episodes and on their teacher-forced re-renders,
+    and under ``changed`` the pairs whose verdict the re-render changed (to look at: a re-render that loses
+    an object changes the outcome it shows, and a judge should follow it)."""
+    if not named:
         return None
+    recs = [r for _, r in named]
     out: dict[str, Any] = {"n": len(recs)}
     truth = [bool(r["real"]) for r in recs]
     out["reference"] = {
@@ -187,4 +190,28 @@ def _judges_summary(recs: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
                 list(zip(truth, [r["learned"]["teacher_forced"] for r in recs], strict=True)), plain
             ),
         }
+    out["changed"] = {
+        judge: [
+            {
+                "pair": pair,
+                "real": bool(r["real"]),
+                "plain": _said(r[judge]["plain"]),
+                "teacher_forced": _said(r[judge]["teacher_forced"]),
+            }
+            for pair, r in named
+            if judge in r
+            and None not in (_said(r[judge]["plain"]), _said(r[judge]["teacher_forced"]))
+            and _said(r[judge]["plain"]) != _said(r[judge]["teacher_forced"])
+        ]
+        for judge in ("reference", "learned")
+        if judge in out
+    }
     return out
+
+
+def _said(verdict: dict[str, Any] | bool | None) -> bool | None:
+    """A recorded verdict's success (None: abstained)."""
+    if isinstance(verdict, dict):
+        s = verdict.get("success")
+        return None if s is None else bool(s)
+    return None if verdict is None else bool(verdict)

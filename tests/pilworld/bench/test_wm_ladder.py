@@ -240,6 +240,31 @@ def test_a_learned_judges_drop_is_counted_on_episodes_judged_both_ways() -> None
     assert s["agreement_drop_points"] == round(100 * (1.0 - 2 / 3), 2)
 
 
+def test_the_pairs_a_re_render_changed_are_listed_per_judge() -> None:
+    from pilworld.bench.wm_ladder.teacher_forced import _judges_summary
+
+    def rec(real: bool, ref: tuple[bool, bool], learned: tuple[bool | None, bool | None]) -> dict[str, Any]:
+        return {
+            "real": real,
+            "reference": {
+                k: {"success": v, "hallucination_frame": None}
+                for k, v in zip(("plain", "teacher_forced"), ref, strict=True)
+            },
+            "learned": {"plain": {"success": learned[0]}, "teacher_forced": {"success": learned[1]}},
+        }
+
+    s = _judges_summary(
+        [
+            ("a", rec(True, (True, True), (True, False))),
+            ("b", rec(False, (True, False), (None, True))),
+            ("c", rec(True, (True, True), (True, True))),
+        ]
+    )
+    assert s is not None
+    assert s["changed"]["learned"] == [{"pair": "a", "real": True, "plain": True, "teacher_forced": False}]
+    assert [c["pair"] for c in s["changed"]["reference"]] == ["b"]  # an abstention is no change
+
+
 def _run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, dict[str, Any] | None, str]:
     code = main(args)
     out = capsys.readouterr()
