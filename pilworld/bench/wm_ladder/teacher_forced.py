@@ -190,28 +190,16 @@ def _judges_summary(named: Sequence[tuple[str, dict[str, Any]]]) -> dict[str, An
                 list(zip(truth, [r["learned"]["teacher_forced"] for r in recs], strict=True)), plain
             ),
         }
-    out["changed"] = {
-        judge: [
-            {
-                "pair": pair,
-                "real": bool(r["real"]),
-                "plain": _said(r[judge]["plain"]),
-                "teacher_forced": _said(r[judge]["teacher_forced"]),
-            }
-            for pair, r in named
-            if judge in r
-            and None not in (_said(r[judge]["plain"]), _said(r[judge]["teacher_forced"]))
-            and _said(r[judge]["plain"]) != _said(r[judge]["teacher_forced"])
-        ]
-        for judge in ("reference", "learned")
-        if judge in out
-    }
+    out["changed"] = {judge: _changed(named, judge) for judge in ("reference", "learned") if judge in out}
     return out
 
 
-def _said(verdict: dict[str, Any] | bool | None) -> bool | None:
-    """A recorded verdict's success (None: abstained)."""
-    if isinstance(verdict, dict):
-        s = verdict.get("success")
-        return None if s is None else bool(s)
-    return None if verdict is None else bool(verdict)
+def _changed(named: Sequence[tuple[str, dict[str, Any]]], judge: str) -> list[dict[str, Any]]:
+    """The pairs whose ``judge`` verdict differs between the real episode and its re-render (an abstention, whose
+    success is None, is no change)."""
+    out = []
+    for pair, r in named:
+        plain, forced = r[judge]["plain"]["success"], r[judge]["teacher_forced"]["success"]
+        if plain is not None and forced is not None and bool(plain) != bool(forced):
+            out.append({"pair": pair, "real": bool(r["real"]), "plain": bool(plain), "teacher_forced": bool(forced)})
+    return out

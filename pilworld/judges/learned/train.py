@@ -255,7 +255,7 @@ def train_net(data: Data, idx: NDArray[np.int64], settings: TrainSettings, seed:
         chosen = idx[pick]
         frames, state, context = _batch(data, chosen, rng.integers(0, E, len(chosen)))
         frames = _augment(frames, gen)
-        if settings.imagined > 0:
+        if settings.imagined > 0:  # off, it draws nothing from ``gen``: the judges trained before it reproduce
             frames = _imagined_look(frames, gen, settings.imagined, scales)
         logits = net(frames, state, context)
         loss = F.binary_cross_entropy_with_logits(logits, torch.from_numpy(data.labels[chosen]), pos_weight=pos_weight)
