@@ -134,6 +134,7 @@ def head_scene(
         scale=scale,
         grip=rig.kinematics.gripper_openings(episode.state),
         colourful=colourful,
+        shadows=shadows,
     )
 
 

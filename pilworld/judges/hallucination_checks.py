@@ -15,7 +15,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from pilworld.judges.hallucination_scene import TEXTURE_FRAMES, ArmViews, Mask, channel_max, channel_min, dilate, erode
+from pilworld.judges.hallucination_scene import (
+    TEXTURE_FRAMES,
+    ArmViews,
+    Mask,
+    Shadows,
+    channel_max,
+    channel_min,
+    dilate,
+    erode,
+)
 from pilworld.perception.colour import ColourClass
 
 # Categories (paper appendix, "Hallucination-free ratio"): the reason of a verdict starts with one of these.
@@ -60,6 +69,7 @@ class Thresholds:
     arm_extra_margin_px: float = 3.0  # slack around the predicted silhouette for the extra-pixels test
     object_shading_px: float = 3.0  # an object's shaded, unsaturated rim reaches this far beyond its colour blob
     arm_visible: float = 0.97  # below this arm visibility the drawn arm alone may hide an object (flat look: 1.0)
+    arm_unseen_margin_px: float = 1.0  # ... within this of its drawn silhouette (one frame of lag either way)
     shadow_tint_distance: float = 0.025  # a shadow's ratio chromaticity lies this close to the episode's shadow tint
     shadow_ratio_factor: float = 1.6  # ... and scales its brightness as the episode's shadows do, to this factor
     shadow_frames: int = 16  # the first frames the episode's shadow tint is learnt from (the light does not change)
@@ -80,6 +90,8 @@ class Thresholds:
     acting_reach_px: float = 16.0  # ... and what it squeezes out, drops or lets go may land this far from it
     faint_object_px: float = 24.0  # a blob of only faded pixels smaller than this is a speck, not an object
     faint_margin: float = 0.04  # ... as is one of any size whose mean saturation passes the faded test by less
+    faint_colourful: float = 0.1  # ... with at most this share of fully saturated pixels (camera noise)
+    empty_scene_fraction: float = 0.5  # a vanished blob the seen empty scene explains this much of was the table's
     texture_frames: int = TEXTURE_FRAMES  # start frames a colour's speckle is counted in (hallucination_scene)
     texture_ratio: float = 1.0  # a colour is the table's texture when its faded speckle outnumbers its object pixels
     texture_specks: int = 3  # ... in at least this many separate specks
@@ -107,6 +119,7 @@ class HeadScene:
     scale: float  # image width / 128
     grip: NDArray[np.float64]  # (T, 2) left and right grip openings from the state (0 closed … 1 open)
     colourful: NDArray[np.bool_]  # (T, H, W) saturated pixels of any hue: objects, known or not, never arms
+    shadows: Shadows | None = None  # this episode's cast shadows (hallucination_scene.shadow_tint); None: none
 
     @property
     def length(self) -> int:
@@ -179,10 +192,10 @@ class _ObjectFrames:
         # Where arm and table look alike (an arm partly the table's grey), an arm drawn over a spot may hide
         # it though the image there looks like table: the drawn arm alone is then cover.
         self.arm_unseen = scene.arm_visibility < th.arm_visible
-        self.arm_zone = [
-            dilate(whole[max(t - 1, 0)] | whole[t] | whole[min(t + 1, T - 1)], th.arm_extra_margin_px * s)
-            for t in range(T)
-        ]
+        drawn = [whole[max(t - 1, 0)] | whole[t] | whole[min(t + 1, T - 1)] for t in range(T)]
+        self.arm_zone = [dilate(d, th.arm_extra_margin_px * s) for d in drawn]
+        # Where the image cannot tell arm from table: the drawn arm itself, one frame of lag either way (cover).
+        self.arm_drawn = [dilate(d, th.arm_unseen_margin_px * s) for d in drawn]
 
     def table(self, t: int) -> Mask:
         """Table for the object checks: the empty scene, or the table's colour. A removed object reveals what
@@ -198,21 +211,39 @@ class _ObjectFrames:
     def mask(self, t: int, c: int) -> Mask:
         return np.asarray(self.scene.labels[t] == c + 1)
 
-    def cover(self, t: int, c: int) -> Mask:
+    def cover(self, t: int, c: int, *, tight: bool = False) -> Mask:
         """What can hide object ``c`` at ``t``: an arm where FK puts one, or another object.
 
         Dark pixels elsewhere are not occluders: a slot outline or the stacking mark under a removed
-        object is what an object's disappearance reveals, not what hides it.
+        object is what an object's disappearance reveals, not what hides it. Where the image cannot tell arm
+        from table, the drawn arm hides what lies within its margin; with ``tight`` (an object that vanished),
+        only what lies under the drawn arm itself: next to the fingers, the margin would hide a small object
+        deleted there, while an arm moving away from an object it hid lags its drawing by more.
         """
         labels = self.scene.labels[t]
-        seen = ~self.table(t) | self.arm_unseen
-        arm = seen & (labels == 0) & ~self.scene.colourful[t] & self.arm_zone[t]
+        zone = self.arm_zone[t] & ~self.table(t)
+        if self.arm_unseen:
+            zone = zone | (self.arm_drawn[t] if tight else self.arm_zone[t])
+        arm = zone & (labels == 0) & ~self.scene.colourful[t]
         return dilate(arm | ((labels > 0) & (labels != c + 1)), 2 * self.scene.scale)
 
-    def hidden_or_seen(self, blob: Mask, t: int, c: int, fraction: float | None = None) -> bool:
-        """Is ``blob`` (where object ``c`` would be at ``t``) mostly behind something or showing ``c``?"""
+    def hidden_or_seen(
+        self,
+        blob: Mask,
+        t: int,
+        c: int,
+        fraction: float | None = None,
+        *,
+        coloured: bool = False,
+        tight: bool = False,
+    ) -> bool:
+        """Is ``blob`` (where object ``c`` would be at ``t``) mostly behind something or showing ``c``? With
+        ``coloured``, saturated pixels of any hue count as showing it (an object coming out of an arm's shadow
+        shows a shifted hue first); ``tight``: see :meth:`cover`."""
         n = max(int(blob.sum()), 1)
-        ok = self.cover(t, c) | dilate(self.mask(t, c), 2)
+        ok = self.cover(t, c, tight=tight) | dilate(self.mask(t, c), 2)
+        if coloured:
+            ok = ok | self.scene.colourful[t] | (self.scene.labels[t] > 0)
         need = self.th.covered_fraction if fraction is None else fraction
         return float((blob & ok).sum()) / n >= need
 
@@ -287,14 +318,49 @@ class _ObjectFrames:
         table's grains under a warm light sit at saturation 0.22-0.25, just over the test, and drop out of it with
         camera noise or a passing shadow; a washed-out object in a world model's frame is larger, or more
         saturated where it is faded."""
-        if (blob & self.scene.colourful[t]).any():
-            return False
+        if (blob & self.scene.colourful[t]).sum() > self.th.faint_colourful * blob.sum():
+            return False  # an object's pixels are mostly fully saturated; a grain's are not (one may be, by noise)
         if float(blob.sum()) < self.th.faint_object_px * self.scene.scale**2:
             return True
         px = self.scene.images[t][blob].astype(np.float64)
         hi = channel_max(px)
         saturation = float(np.mean((hi - channel_min(px)) / np.maximum(hi, 1.0)))
         return saturation < self.th.faded_saturation + self.th.faint_margin
+
+    def explained(self, blob: Mask, t: int) -> bool:
+        """Does the empty scene, lit or in a shadow, explain most of ``blob`` at ``t``? A warm table's grain of an
+        object's hue (an orange bowl on warm wood) passes that hue's test a speck at a time, and in an arm's
+        shadow its dark pixels pass even the saturated test (a small difference over a small value); the empty
+        scene shows the same grain there. An object lies on the table and differs from it."""
+        explained = blob & (self.scene.table[t] | self.scene.shadow[t])
+        return float(explained.sum()) >= self.th.empty_scene_fraction * float(blob.sum())
+
+    def shaded(self, blob: Mask, t: int) -> bool:
+        """Is what changed at ``blob`` by ``t`` a cast shadow falling on it or lifting, where the empty scene
+        was never seen (grain taken for an object in every frame)? A shadow scales every channel by the light it
+        takes away: the blob's own pixels three frames before, scaled by the episode's shadow tint and ratio
+        (:func:`hallucination_scene.shadow_like`), predict it; and from the frame before, where it was still
+        taken for an object, either that or hardly anything changed (the shadow's edge already on it). An object
+        that leaves reveals table of another colour; one that stays in a shadow keeps its hue and is not lost."""
+        shadows = self.scene.shadows
+        if shadows is None:
+            return False
+        now = self.scene.images[t][blob].astype(np.float64).mean(axis=0)
+        last = self.scene.images[t - 1][blob].astype(np.float64).mean(axis=0)
+        early = self.scene.images[max(t - 3, 0)][blob].astype(np.float64).mean(axis=0)
+        if not self._shadow_change(early, now, shadows):
+            return False
+        return float(np.abs(now - last).max()) < self.th.object_change or self._shadow_change(last, now, shadows)
+
+    def _shadow_change(self, before: NDArray[np.float64], now: NDArray[np.float64], shadows: Shadows) -> bool:
+        q = (now + 2.0) / (before + 2.0)
+        bright = float(q.mean())
+        if bright > 1.0:
+            q, bright = 1.0 / q, 1.0 / bright
+        chroma = q / q.sum()
+        lo, hi = shadows.ratio / self.th.shadow_ratio_factor, min(shadows.ratio * self.th.shadow_ratio_factor, 0.97)
+        close = float(np.abs(chroma - shadows.tint).max()) <= self.th.shadow_tint_distance
+        return close and lo <= bright <= hi
 
     def vanished(self, t: int, c: int) -> list[Mask]:
         """Blobs of ``c`` at ``t - 1`` with nothing of ``c`` near them at ``t`` and no physical explanation."""
@@ -305,19 +371,42 @@ class _ObjectFrames:
                 continue  # still there, or moved a plausible step
             if self.faint(blob, t - 1):
                 continue  # a speck of the table's grain, not an object
+            if self.explained(blob, t - 1):
+                continue  # the empty scene, lit or shaded, explains it where it was: the table's grain
             if not self.changed(blob, t):
                 continue  # the image did not change there: the colour test flickered, nothing went
+            if self.shaded(blob, t):
+                continue  # a shadow fell on it (a dark grain's hue test fails): nothing went
             small = blob.sum() < 2 * self.min_px
             if small and t >= 2 and (dilate(blob, self.step) & self.mask(t - 2, c)).sum() < 0.5 * blob.sum():
                 continue  # a one-frame sliver (turning into view behind an arm and out again), not an object
             if (blob & self.table(t)).sum() < 0.5 * blob.sum():
                 continue  # not (yet) table where it was: a washed-out ghost of it, or something unexplained on top
-            if _touches_border(blob) or self.hidden_or_seen(blob, t, c) or self.carried(blob, t - 1, t, c):
+            if _touches_border(blob) or self.hidden_or_seen(blob, t, c, tight=True) or self.carried(blob, t - 1, t, c):
                 continue
             if self.gripper_acting(blob, t, seen_after=True):
                 continue
             out.append(blob)
         return out
+
+    def recently_seen(self, blob: Mask, t: int, c: int) -> bool:
+        """Was ``c`` within a step of ``blob`` two or three frames before ``t``? An object that turns out of view for
+        a frame or two (a ball tipping inside a cup, a bowl's rim under a passing shadow) comes back where it was;
+        a copy appears where none was."""
+        near = dilate(blob, self.step)
+        return any((near & self.mask(max(t - d, 0), c)).sum() >= 0.25 * blob.sum() for d in (2, 3))
+
+    def beside_moving(self, blob: Mask, t: int, c: int) -> bool:
+        """Does ``blob`` touch another object that moved right beside it from ``t - 1`` to ``t``? A bowl carried
+        over a bowl uncovers the lower one's rim in pieces, and a marker of several colours turning in the
+        fingers shows a new colour beside the old; a copy is put on free table, away from every object."""
+        s = self.scene.scale
+        labels = self.scene.labels
+        others = [(labels[u] > 0) & (labels[u] != c + 1) for u in (t - 1, t)]
+        if not (dilate(blob, 2 * s) & others[1]).any():
+            return False
+        moved = dilate(blob, self.step) & (others[0] ^ others[1])
+        return float(moved.sum()) >= 0.5 * float(blob.sum())
 
     def appeared(self, t: int, c: int) -> list[Mask]:
         """Blobs of ``c`` at ``t`` with nothing of ``c`` near them at ``t - 1`` and no physical explanation."""
@@ -326,13 +415,19 @@ class _ObjectFrames:
         for blob in _components(self.mask(t, c), self.min_px):
             if (dilate(blob, self.step) & before).sum() >= 0.25 * blob.sum():
                 continue
+            if self.recently_seen(blob, t, c):
+                continue  # seen there two or three frames before: turned out of view and back (a ball in a cup)
+            if self.beside_moving(blob, t, c):
+                continue  # uncovered by a neighbour that moved, or a part of it turning into view
             if self.faint(blob, t):
                 continue  # a speck of the table's grain, not an object
             if not self.changed(blob, t):
                 continue  # the image did not change there: nothing came
             if (blob & (self.scene.table[t] | self.scene.shadow[t])).sum() >= 0.5 * blob.sum():
                 continue  # the empty scene, lit or shaded, explains it: grains a shadow left, not an object
-            if _touches_border(blob) or self.hidden_or_seen(blob, t - 1, c) or self.carried(blob, t, t - 1, c):
+            if _touches_border(blob) or self.hidden_or_seen(blob, t - 1, c, coloured=True):
+                continue  # revealed from behind something, or already there in a shifted hue
+            if self.carried(blob, t, t - 1, c):
                 continue
             if self.gripper_acting(blob, t):
                 continue  # out from under a gripper that lets go

@@ -212,7 +212,7 @@ def test_a_faint_speck_of_an_objects_hue_is_no_object(episodes: list[Episode], r
     faint = _ObjectFrames(dataclasses.replace(scene, labels=labels, images=images, table=table), th)
     assert faint.faint(spot, t) and faint.appeared(t, 0) == []
     colourful = scene.colourful.copy()
-    colourful[t:, spot] = True  # one saturated pixel would do
+    colourful[t:, spot] = True  # saturated throughout: an object
     solid = _ObjectFrames(
         dataclasses.replace(scene, labels=labels, images=images, table=table, colourful=colourful), th
     )
