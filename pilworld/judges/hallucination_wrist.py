@@ -173,11 +173,10 @@ def _check_view(
         k = int(blob.sum())
         if now.sum() >= 0.25 * k:
             return False, blob  # still in view somewhere (a held object swings in its grasp; a ring splits)
-        kept = (dilate(blob, near) & now).sum() >= 0.25 * k or (blob & cover).sum() >= th.wrist_covered_fraction * k
-        if holding(t, t_to) and kept:
+        if holding(t, t_to) and (
+            (dilate(blob, near) & now).sum() >= 0.25 * k or (blob & cover).sum() >= th.wrist_covered_fraction * k
+        ):
             return False, blob  # held by this camera's gripper (it stays put in the image), or covered there
-        if holding(t, t_to) and (blob & between).sum() >= 0.5 * k:
-            return True, blob  # held between the closed fingers, it can only stay put: the table plane says nothing
         if on_table.sum() < 0.6 * k:
             return False, on_table  # resting on the table, the camera motion takes it (mostly) out of view
         k = int(on_table.sum())

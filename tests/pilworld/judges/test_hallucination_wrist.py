@@ -56,10 +56,17 @@ def deleted(tmp_path_factory: pytest.TempPathFactory, rig: RigConfig) -> tuple[E
 
 
 def _wrist(
-    ep: Episode, k: int, name: str, rig: RigConfig, held: bool, paint: tuple[int, int, int]
+    ep: Episode,
+    k: int,
+    name: str,
+    rig: RigConfig,
+    held: bool,
+    paint: tuple[int, int, int],
+    landed: tuple[int, int] | None = None,
 ) -> NDArray[np.uint8]:
     """(T, H, W, 3): the object's blob until ``k`` — on the table where :data:`FAR` shows it at ``k - 1``, or
-    held between the fingers at :data:`BETWEEN` — then gone, ``paint`` in the image where it was at ``k - 1``."""
+    held between the fingers at :data:`BETWEEN` — then gone, ``paint`` in the image where it was at ``k - 1``
+    (and, with ``landed``, the blob shown there from ``k`` on: dropped)."""
     scene = head_scene(ep, rig, "")
     hue = float(name.removeprefix("hue_"))  # the injector's name for it; the detector's class may differ by a few °
     colour = min(scene.classes, key=lambda c: min(abs(c.hue_deg - hue), 360 - abs(c.hue_deg - hue)))
@@ -79,6 +86,8 @@ def _wrist(
         at = anchor[0] if held else cam.reproject(anchor, poses[k - 1], poses[t], PLANE_Z)[0][0]
         frames[t, disc(at)] = rgb
     frames[k:, disc(anchor[0])] = paint
+    if landed is not None:
+        frames[k:, disc(np.array(landed, float))] = rgb
     frames[:, int(0.85 * h) :] = 20  # the gripper's body, in front of everything
     frames[:, int(0.65 * h) :, int(0.25 * w) : int(0.32 * w)] = 25  # its fingers
     frames[:, int(0.65 * h) :, int(0.68 * w) : int(0.75 * w)] = 25
@@ -94,11 +103,12 @@ def _judge(
     held: bool,
     paint: tuple[int, int, int],
     grip: NDArray[np.float64],
+    landed: tuple[int, int] | None = None,
 ) -> Finding | None:
     state = ep.state.copy()
     state[:, LEFT_GRIP] = grip
     ep = dataclasses.replace(ep, state=state)
-    wrists = {VIEW: _wrist(ep, k, name, rig, held, paint)}
+    wrists = {VIEW: _wrist(ep, k, name, rig, held, paint, landed)}
     return check_wrist_objects(head_scene(ep, rig, ""), wrists, rig, ep.state, Thresholds())
 
 
@@ -119,9 +129,23 @@ def test_a_closed_gripper_may_hold_what_something_now_covers(deleted: tuple[Epis
 def test_an_opening_gripper_excuses_only_what_lies_between_its_fingers(
     deleted: tuple[Episode, int, str], rig: RigConfig
 ) -> None:
-    """What it held drops anywhere in view; an object resting on the table it never held."""
+    """What it held drops anywhere in view; an object resting on the table it never held. What it held must
+    still land somewhere: gone from this view (and the head view, where it was deleted too), it vanished."""
     ep, k, name = deleted
     grip = np.where(np.arange(ep.length) < k, 0.3, 1.0)
-    assert _judge(ep, k, name, rig, held=True, paint=TABLE, grip=grip) is None
+    assert _judge(ep, k, name, rig, held=True, paint=TABLE, grip=grip, landed=FAR) is None
+    found = _judge(ep, k, name, rig, held=True, paint=TABLE, grip=grip)
+    assert found is not None and found.frame == k, found
     found = _judge(ep, k, name, rig, held=False, paint=TABLE, grip=grip)
     assert found is not None and found.frame == k, found
+
+
+def test_an_object_held_between_closed_fingers_can_only_stay_put(
+    deleted: tuple[Episode, int, str], rig: RigConfig
+) -> None:
+    """Between closed fingers an object moves with the camera: gone from there, with the table showing, it
+    vanished; with something else showing there, it may be behind it."""
+    ep, k, name = deleted
+    found = _judge(ep, k, name, rig, held=True, paint=TABLE, grip=np.full(ep.length, 0.3))
+    assert found is not None and found.frame == k, found
+    assert _judge(ep, k, name, rig, held=True, paint=TRAY, grip=np.full(ep.length, 0.3)) is None  # covered
