@@ -397,16 +397,19 @@ class _ObjectFrames:
         return any((near & self.mask(max(t - d, 0), c)).sum() >= 0.25 * blob.sum() for d in (2, 3))
 
     def beside_moving(self, blob: Mask, t: int, c: int) -> bool:
-        """Does ``blob`` touch another object that moved right beside it from ``t - 1`` to ``t``? A bowl carried
+        """Does ``blob`` touch another object that moved off right beside it from ``t - 1`` to ``t``? A bowl carried
         over a bowl uncovers the lower one's rim in pieces, and a marker of several colours turning in the
-        fingers shows a new colour beside the old; a copy is put on free table, away from every object."""
+        fingers shows a new colour where the old was; a copy is put on free table, away from every object (the
+        bits of its neighbours a copy brings along appear with it, where nothing was)."""
         s = self.scene.scale
         labels = self.scene.labels
         others = [(labels[u] > 0) & (labels[u] != c + 1) for u in (t - 1, t)]
         if not (dilate(blob, 2 * s) & others[1]).any():
             return False
-        moved = dilate(blob, self.step) & (others[0] ^ others[1])
-        return float(moved.sum()) >= 0.5 * float(blob.sum())
+        # Where the neighbour was and is no more: a copy brings bits of its neighbours along (they appear with
+        # it), an object that moves off leaves.
+        vacated = dilate(blob, self.step) & others[0] & ~others[1]
+        return float(vacated.sum()) >= 0.25 * float(blob.sum())
 
     def appeared(self, t: int, c: int) -> list[Mask]:
         """Blobs of ``c`` at ``t`` with nothing of ``c`` near them at ``t - 1`` and no physical explanation."""

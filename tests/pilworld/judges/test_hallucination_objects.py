@@ -114,8 +114,9 @@ def test_an_object_seen_there_two_or_three_frames_before_is_no_new_one(scene: He
 
 def test_an_object_uncovered_beside_a_moving_neighbour_is_no_new_one(scene: HeadScene) -> None:
     """A bowl carried over a bowl uncovers the lower one's rim in pieces; a marker turning in the fingers shows a
-    new colour beside the old: a blob touching another object that moved right beside it is explained. Beside a
-    neighbour that stays put, it is not."""
+    new colour where the old was: a blob touching another object that moved off right beside it is explained.
+    Beside a neighbour that stays put, or one that appears with it (the bits of a neighbour a copy brings
+    along), it is not."""
     th = Thresholds()
     spot = _spot(scene)
     new = _appearing(scene, spot)
@@ -126,6 +127,10 @@ def test_an_object_uncovered_beside_a_moving_neighbour_is_no_new_one(scene: Head
     labels[T - 1, 4:8, 56:60] = 2  # at T - 1 it also lay over the spot's far side: it moved off
     moved = _ObjectFrames(dataclasses.replace(new, labels=labels), th)
     assert moved.beside_moving(spot, T, 0) and moved.appeared(T, 0) == []
+    labels[: T - 1, 4:8, 56:68] = 0
+    labels[T - 1, 4:8, 56:68] = 0  # the neighbour appears with the blob (a copy brings its neighbour's bits)
+    brought = _ObjectFrames(dataclasses.replace(new, labels=labels), th)
+    assert not brought.beside_moving(spot, T, 0) and len(brought.appeared(T, 0)) == 1
 
 
 def test_an_object_in_a_shifted_hue_before_is_revealed_not_new(scene: HeadScene) -> None:
