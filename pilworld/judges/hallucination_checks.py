@@ -211,21 +211,42 @@ class _ObjectFrames:
     def mask(self, t: int, c: int) -> Mask:
         return np.asarray(self.scene.labels[t] == c + 1)
 
-    def cover(self, t: int, c: int, *, tight: bool = False) -> Mask:
+    def cover(self, t: int, c: int, *, tight: bool = False, still: frozenset[int] = frozenset()) -> Mask:
         """What can hide object ``c`` at ``t``: an arm where FK puts one, or another object.
 
         Dark pixels elsewhere are not occluders: a slot outline or the stacking mark under a removed
         object is what an object's disappearance reveals, not what hides it. Where the image cannot tell arm
         from table, the drawn arm hides what lies within its margin; with ``tight`` (an object that vanished),
         only what lies under the drawn arm itself: next to the fingers, the margin would hide a small object
-        deleted there, while an arm moving away from an object it hid lags its drawing by more.
+        deleted there, while an arm moving away from an object it hid lags its drawing by more. Objects of the
+        classes in ``still`` hide nothing (see :meth:`still_beneath`).
         """
         labels = self.scene.labels[t]
         zone = self.arm_zone[t] & ~self.table(t)
         if self.arm_unseen:
             zone = zone | (self.arm_drawn[t] if tight else self.arm_zone[t])
         arm = zone & (labels == 0) & ~self.scene.colourful[t]
-        return dilate(arm | ((labels > 0) & (labels != c + 1)), 2 * self.scene.scale)
+        others = (labels > 0) & (labels != c + 1)
+        for j in still:
+            others &= labels != j + 1
+        return dilate(arm | others, 2 * self.scene.scale)
+
+    def still_beneath(self, blob: Mask, t: int, c: int) -> frozenset[int]:
+        """The classes that show where ``blob`` (object ``c`` at ``t - 1``) was at ``t`` without having moved there: an
+        object that comes over another leaves pixels on its trailing side (a quarter of what it now covers of the
+        blob, at least, within a step around it); one that lay beneath or beside it all along (a coaster under a
+        puck, a tray around a marker) leaves none, and showing where the object was, it was uncovered."""
+        labels = self.scene.labels
+        ring = dilate(blob, self.step) & ~blob
+        out = set()
+        for j in np.unique(labels[t][blob]):
+            if j == 0 or j == c + 1:
+                continue
+            shown = float(((labels[t] == j) & blob).sum())
+            left = float((ring & (labels[t - 1] == j) & (labels[t] != j)).sum())
+            if left < 0.25 * shown:
+                out.add(int(j) - 1)
+        return frozenset(out)
 
     def hidden_or_seen(
         self,
@@ -236,12 +257,13 @@ class _ObjectFrames:
         *,
         coloured: bool = False,
         tight: bool = False,
+        still: frozenset[int] = frozenset(),
     ) -> bool:
         """Is ``blob`` (where object ``c`` would be at ``t``) mostly behind something or showing ``c``? With
         ``coloured``, saturated pixels of any hue count as showing it (an object coming out of an arm's shadow
-        shows a shifted hue first); ``tight``: see :meth:`cover`."""
+        shows a shifted hue first); ``tight`` and ``still``: see :meth:`cover`."""
         n = max(int(blob.sum()), 1)
-        ok = self.cover(t, c, tight=tight) | dilate(self.mask(t, c), 2)
+        ok = self.cover(t, c, tight=tight, still=still) | dilate(self.mask(t, c), 2)
         if coloured:
             ok = ok | self.scene.colourful[t] | (self.scene.labels[t] > 0)
         need = self.th.covered_fraction if fraction is None else fraction
@@ -382,7 +404,10 @@ class _ObjectFrames:
                 continue  # a one-frame sliver (turning into view behind an arm and out again), not an object
             if (blob & self.table(t)).sum() < 0.5 * blob.sum():
                 continue  # not (yet) table where it was: a washed-out ghost of it, or something unexplained on top
-            if _touches_border(blob) or self.hidden_or_seen(blob, t, c, tight=True) or self.carried(blob, t - 1, t, c):
+            still = self.still_beneath(blob, t, c)
+            if _touches_border(blob) or self.hidden_or_seen(blob, t, c, tight=True, still=still):
+                continue
+            if self.carried(blob, t - 1, t, c):
                 continue
             if self.gripper_acting(blob, t, seen_after=True):
                 continue

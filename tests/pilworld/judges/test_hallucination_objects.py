@@ -176,3 +176,26 @@ def test_where_arm_and_table_look_alike_only_the_drawn_arm_hides(scene: HeadScen
     whole[T - 1 : T + 2, 4:8, 58:70] = 1  # drawn over it
     over = _ObjectFrames(dataclasses.replace(beside, arms=dataclasses.replace(scene.arms, whole=whole)), th)
     assert over.hidden_or_seen(spot, T, 0, tight=True)
+
+
+def test_what_lay_beneath_all_along_hides_nothing(scene: HeadScene) -> None:
+    """A puck deleted from its coaster shows the coaster where it was: the coaster never moved (it left no pixels
+    behind), so it uncovered the spot rather than hid it. An object that came over the spot, leaving pixels on
+    its trailing side, hides it."""
+    th = Thresholds()
+    spot = _spot(scene)
+    gone = _vanishing(scene, spot)
+    labels = gone.labels.copy()
+    labels[T - 3 : T + 2, 2:10, 58:66] = 2  # a coaster around the spot, all along
+    labels[:T, spot] = 1  # the puck on it until T - 1
+    table = gone.table.copy()
+    table[T:, spot] = False  # where the puck was, the coaster shows: not table
+    beneath = _ObjectFrames(dataclasses.replace(gone, labels=labels, table=table), th)
+    assert beneath.still_beneath(spot, T, 0) == frozenset({1})
+    assert not beneath.hidden_or_seen(spot, T, 0, still=beneath.still_beneath(spot, T, 0))
+    labels[T - 3 : T, 2:10, 58:66] = 0
+    labels[T - 3 : T, 2:10, 52:58] = 2  # the other object was beside the spot and slid over it at T
+    labels[:T, spot] = 1
+    over = _ObjectFrames(dataclasses.replace(gone, labels=labels, table=table), th)
+    assert over.still_beneath(spot, T, 0) == frozenset()
+    assert over.hidden_or_seen(spot, T, 0, still=over.still_beneath(spot, T, 0))
