@@ -160,9 +160,6 @@ def _check_view(
         """Only a closed gripper holds anything (an open one's camera sees what rests on the table)."""
         return bool(min(own_grip[t], own_grip[t_to]) < th.closed_grip)
 
-    # What this gripper holds sits between its fingers: inside the hull of the gripper's own pixels.
-    between = dilate(convex_hull(wrist_signature(frames, th.signature_dark)), near)
-
     def gone(t: int, c: int, blob: Mask, t_to: int) -> tuple[bool, Mask]:
         """Is ``blob`` of class ``c`` at ``t`` missing at ``t_to`` (where it should show, nothing covers it)?"""
         now = labels[t_to] == c + 1
@@ -183,6 +180,8 @@ def _check_view(
         seen = (dilate(on_table, near) & now).sum() >= 0.25 * k
         return not (seen or (on_table & cover).sum() >= th.wrist_covered_fraction * k), on_table
 
+    # What this gripper holds sits between its fingers: inside the hull of the gripper's own pixels.
+    between = dilate(convex_hull(wrist_signature(frames, th.signature_dark)), near)
     for t in range(1, T - 1):
         opens = own_grip[t] - own_grip[t - 1] > 0.05
         for c, cls in enumerate(head.classes):
@@ -192,22 +191,15 @@ def _check_view(
                 if stats[i, cv2.CC_STAT_AREA] < min_px:
                     continue
                 blob = lab == i
-                dropped = False
                 if opens and (blob & between).sum() >= 0.5 * stats[i, cv2.CC_STAT_AREA]:
-                    # This gripper opens on it: what it held drops, close to the camera, anywhere in view, but
-                    # it drops within view or into the head view's (below); gone from both, it vanished.
-                    shown = max(int((labels[u] == c + 1).sum()) for u in (t, t + 1))
-                    if shown >= min_px:
-                        continue
-                    missing, where, dropped = True, blob, True  # shown nowhere at t and t + 1
-                else:
-                    missing, where = gone(t - 1, c, blob, t)
+                    continue  # this gripper opens on it: what it held drops, close to the camera, anywhere in view
+                missing, where = gone(t - 1, c, blob, t)
                 if not missing or _carried_elsewhere(head, state, t, c, th, cam.arm):
                     continue
                 in_head = int((head.labels[t] == c + 1).sum())
                 if in_head >= max(th.min_object_px * head.scale**2, 0.25 * int((head.labels[t - 1] == c + 1).sum())):
                     continue  # the head view still sees it: it moved on its own (knocked, dropped) faster than foreseen
-                if dropped or gone(t - 1, c, blob, t + 1)[0]:
+                if gone(t - 1, c, blob, t + 1)[0]:
                     u, v = _centre(where)
                     return Finding(
                         t,

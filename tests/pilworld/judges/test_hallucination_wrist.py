@@ -129,13 +129,13 @@ def test_a_closed_gripper_may_hold_what_something_now_covers(deleted: tuple[Epis
 def test_an_opening_gripper_excuses_only_what_lies_between_its_fingers(
     deleted: tuple[Episode, int, str], rig: RigConfig
 ) -> None:
-    """What it held drops anywhere in view; an object resting on the table it never held. What it held must
-    still land somewhere: gone from this view (and the head view, where it was deleted too), it vanished."""
+    """What it held drops anywhere in view, or out of it (released objects fall out of a wrist view, behind the
+    arm in the head view, within a frame: requiring them to land in view flagged 4 of 150 clean episodes on two
+    varied sets); an object resting on the table it never held."""
     ep, k, name = deleted
     grip = np.where(np.arange(ep.length) < k, 0.3, 1.0)
     assert _judge(ep, k, name, rig, held=True, paint=TABLE, grip=grip, landed=FAR) is None
-    found = _judge(ep, k, name, rig, held=True, paint=TABLE, grip=grip)
-    assert found is not None and found.frame == k, found
+    assert _judge(ep, k, name, rig, held=True, paint=TABLE, grip=grip) is None
     found = _judge(ep, k, name, rig, held=False, paint=TABLE, grip=grip)
     assert found is not None and found.frame == k, found
 
