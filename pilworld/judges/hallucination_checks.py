@@ -22,8 +22,10 @@ from pilworld.judges.hallucination_scene import (
     Shadows,
     channel_max,
     channel_min,
+    colour_ratio,
     dilate,
     erode,
+    shadow_fit,
 )
 from pilworld.perception.colour import ColourClass
 
@@ -91,7 +93,7 @@ class Thresholds:
     faint_object_px: float = 24.0  # a blob of only faded pixels smaller than this is a speck, not an object
     faint_margin: float = 0.04  # ... as is one of any size whose mean saturation passes the faded test by less
     faint_colourful: float = 0.1  # ... with at most this share of fully saturated pixels (camera noise)
-    empty_scene_fraction: float = 0.5  # a vanished blob the seen empty scene explains this much of was the table's
+    empty_scene_fraction: float = 0.5  # a blob the empty scene (lit or shaded) explains this much of is table
     texture_frames: int = TEXTURE_FRAMES  # start frames a colour's speckle is counted in (hallucination_scene)
     texture_ratio: float = 1.0  # a colour is the table's texture when its faded speckle outnumbers its object pixels
     texture_specks: int = 3  # ... in at least this many separate specks
@@ -195,7 +197,7 @@ class _ObjectFrames:
         drawn = [whole[max(t - 1, 0)] | whole[t] | whole[min(t + 1, T - 1)] for t in range(T)]
         self.arm_zone = [dilate(d, th.arm_extra_margin_px * s) for d in drawn]
         # Where the image cannot tell arm from table: the drawn arm itself, one frame of lag either way (cover).
-        self.arm_drawn = [dilate(d, th.arm_unseen_margin_px * s) for d in drawn]
+        self.arm_drawn = [dilate(d, th.arm_unseen_margin_px * s) for d in drawn] if self.arm_unseen else []
 
     def table(self, t: int) -> Mask:
         """Table for the object checks: the empty scene, or the table's colour. A removed object reveals what
@@ -375,14 +377,15 @@ class _ObjectFrames:
         return float(np.abs(now - last).max()) < self.th.object_change or self._shadow_change(last, now, shadows)
 
     def _shadow_change(self, before: NDArray[np.float64], now: NDArray[np.float64], shadows: Shadows) -> bool:
-        q = (now + 2.0) / (before + 2.0)
-        bright = float(q.mean())
-        if bright > 1.0:
-            q, bright = 1.0 / q, 1.0 / bright
-        chroma = q / q.sum()
-        lo, hi = shadows.ratio / self.th.shadow_ratio_factor, min(shadows.ratio * self.th.shadow_ratio_factor, 0.97)
-        close = float(np.abs(chroma - shadows.tint).max()) <= self.th.shadow_tint_distance
-        return close and lo <= bright <= hi
+        chroma, bright = colour_ratio(now, before)
+        fit = shadow_fit(
+            chroma,
+            bright,
+            shadows,
+            max_distance=self.th.shadow_tint_distance,
+            ratio_factor=self.th.shadow_ratio_factor,
+        )
+        return bool(fit)
 
     def vanished(self, t: int, c: int) -> list[Mask]:
         """Blobs of ``c`` at ``t - 1`` with nothing of ``c`` near them at ``t`` and no physical explanation."""
@@ -451,7 +454,7 @@ class _ObjectFrames:
                 continue  # a speck of the table's grain, not an object
             if not self.changed(blob, t):
                 continue  # the image did not change there: nothing came
-            if (blob & (self.scene.table[t] | self.scene.shadow[t])).sum() >= 0.5 * blob.sum():
+            if self.explained(blob, t):
                 continue  # the empty scene, lit or shaded, explains it: grains a shadow left, not an object
             if _touches_border(blob) or self.hidden_or_seen(blob, t - 1, c, coloured=True):
                 continue  # revealed from behind something, or already there in a shifted hue

@@ -293,7 +293,12 @@ def ratio_chroma(blurred: NDArray[np.float32], background: Background) -> tuple[
     (of its inverse where the frame is brighter) and the brightness ratio. A shadow scales every channel by the
     light it takes away, so within one episode all shadows share one ratio chromaticity: the tint of what
     light is left."""
-    q = (blurred + 2.0) / (background.image[None] + 2.0)
+    return colour_ratio(blurred, background.image[None])
+
+
+def colour_ratio(now: NDArray[Any], before: NDArray[Any]) -> tuple[NDArray[Any], NDArray[Any]]:
+    """:func:`ratio_chroma` of colours ``now`` against ``before`` (``(..., 3)``, broadcast)."""
+    q = (now + 2.0) / (before + 2.0)
     bright = q.mean(axis=-1)
     q = np.where((bright > 1.0)[..., None], 1.0 / q, q)
     return q / q.sum(axis=-1, keepdims=True), bright
@@ -361,12 +366,21 @@ def shadow_like(
     a third of such arm pixels fall in it)."""
     if shadows is None:
         return np.zeros(bright.shape, bool)  # no cast shadows in this scene: nothing to excuse
+    out: Mask = background.known[None] & shadow_fit(
+        chroma, bright, shadows, max_distance=max_distance, ratio_factor=ratio_factor
+    )
+    return out
+
+
+def shadow_fit(
+    chroma: NDArray[Any], bright: NDArray[Any], shadows: Shadows, *, max_distance: float, ratio_factor: float
+) -> NDArray[np.bool_]:
+    """Where a :func:`colour_ratio` is a shadow cast or lifted (see :func:`shadow_like`), whatever its shape."""
     lo, hi = shadows.ratio / ratio_factor, min(shadows.ratio * ratio_factor, 0.97)
     close = channel_max(np.abs(chroma - shadows.tint.astype(np.float32))) <= max_distance
     cast = (bright >= lo) & (bright <= hi)
     lifted = (bright >= 1.0 / hi) & (bright <= 1.0 / lo)
-    out: Mask = background.known[None] & close & (cast | lifted)
-    return out
+    return np.asarray(close & (cast | lifted))
 
 
 def object_labels(images: Image, classes: list[ColourClass], faded_saturation: float = 0.22) -> NDArray[np.uint8]:
