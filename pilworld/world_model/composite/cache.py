@@ -11,9 +11,12 @@ identical; a cache whose recorded settings differ from the requested ones is ref
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
-from multiprocessing import get_context
+from multiprocessing import get_all_start_methods, get_context
+from multiprocessing.context import BaseContext
 from pathlib import Path
 from typing import Any
 
@@ -176,6 +179,20 @@ def _jobs(spec: CacheSpec, ds: Any) -> list[tuple[int, int, list[int]]]:
     ]
 
 
+def _init_in(env: dict[str, str], init: Any, initargs: tuple[Any, ...]) -> None:
+    """A worker's initializer: this process's environment (``PILWORLD_CACHE`` and the like), then ``init``."""
+    os.environ.clear()
+    os.environ.update(env)
+    init(*initargs)
+
+
+_PRELOAD = [
+    "pilworld.world_model.composite.cache",
+    "pilworld.world_model.composite.layers",
+    "pilworld.data.clip_dataset",
+]
+
+
 def _fill(
     arrays: Sequence[Any],
     build: Any,
@@ -189,12 +206,28 @@ def _fill(
     desc: str,
     progress: bool,
 ) -> None:
-    """Run ``build`` over the clip jobs in a pool of forked workers and write each clip's rows into ``arrays``
-    (``build`` returns ``(row, *parts)``, one part per array, ``per`` samples each); then flush them."""
-    ctx = get_context("fork")
-    with ctx.Pool(workers, initializer=init, initargs=initargs) as pool:
+    """Run ``build`` over the clip jobs in a pool of worker processes and write each clip's rows into ``arrays``
+    (``build`` returns ``(row, *parts)``, one part per array, ``per`` samples each); then flush them.
+
+    The workers start from a clean process (``forkserver``, else ``spawn``), never by forking this one: a process
+    that has run threaded code (a test worker after rendering or OpenMP work, a notebook) can fork a child that
+    blocks forever on a lock some thread held at the fork. ``ProcessPoolExecutor`` raises ``BrokenProcessPool``
+    when a worker dies (killed for memory, a crash in native code) where ``multiprocessing.Pool`` waits forever
+    for the lost clip."""
+    ctx: BaseContext
+    if "forkserver" in get_all_start_methods():
+        server = get_context("forkserver")
+        # The server imports these once (no threads started yet); each worker forks from it without importing again.
+        server.set_forkserver_preload(_PRELOAD)
+        ctx = server
+    else:
+        ctx = get_context("spawn")
+    env = dict(os.environ)  # the server's environment is from when it started; the workers read this one's
+    with ProcessPoolExecutor(
+        max(1, workers), mp_context=ctx, initializer=_init_in, initargs=(env, init, initargs)
+    ) as pool:
         for row, *parts in tqdm(
-            pool.imap_unordered(build, jobs, chunksize=chunksize),
+            pool.map(build, jobs, chunksize=chunksize),
             total=len(jobs),
             desc=desc,
             unit="clip",

