@@ -210,8 +210,9 @@ def _fill(
     (``build`` returns ``(row, *parts)``, one part per array, ``per`` samples each); then flush them.
 
     The workers start from a clean process (``forkserver``, else ``spawn``), never by forking this one: a process
-    that has run threaded code (a test worker after rendering or OpenMP work, a notebook) can fork a child that
-    blocks forever on a lock some thread held at the fork. ``ProcessPoolExecutor`` raises ``BrokenProcessPool``
+    that has run threaded code can fork a child that blocks forever on a lock some thread held at the fork (seen:
+    a process that had decoded the store's videos, FFmpeg's threads, hung every cache build after it).
+    ``ProcessPoolExecutor`` raises ``BrokenProcessPool``
     when a worker dies (killed for memory, a crash in native code) where ``multiprocessing.Pool`` waits forever
     for the lost clip."""
     ctx: BaseContext
