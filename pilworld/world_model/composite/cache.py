@@ -212,9 +212,8 @@ def _fill(
     The workers start from a clean process (``forkserver``, else ``spawn``), never by forking this one: a process
     that has run threaded code can fork a child that blocks forever on a lock some thread held at the fork (seen:
     a process that had decoded the store's videos, FFmpeg's threads, hung every cache build after it).
-    ``ProcessPoolExecutor`` raises ``BrokenProcessPool``
-    when a worker dies (killed for memory, a crash in native code) where ``multiprocessing.Pool`` waits forever
-    for the lost clip."""
+    ``ProcessPoolExecutor`` raises ``BrokenProcessPool`` when a worker dies (killed for memory, a crash in native
+    code) where ``multiprocessing.Pool`` waits forever for the lost clip."""
     ctx: BaseContext
     if "forkserver" in get_all_start_methods():
         server = get_context("forkserver")
