@@ -38,3 +38,28 @@ def test_bench_hallucination_json(tiny_run: Path, capsys: pytest.CaptureFixture[
     assert main(["bench", "hallucination", str(tiny_run), "--per-fault", "1", "--json"]) == 0
     r = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert "clean" in r and "faults" in r and r["clean"]["n"] >= 1
+
+
+def test_bench_hallucination_draws_each_fault_that_many_times(
+    tiny_run: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["bench", "hallucination", str(tiny_run), "--per-fault", "1", "--draws", "3", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert r["draws"] == 3
+    for fault, stats in r["faults"].items():
+        assert stats["n"] + stats["skipped"] == 3 * r["episodes"], fault
+        if stats["n"]:
+            lo, hi = stats["detection_ci95"]
+            assert lo <= stats["detection_rate"] <= hi, fault
+    lo, hi = r["clean"]["false_positive_ci95"]
+    assert lo <= r["clean"]["false_positive_rate"] <= hi
+
+
+def test_wilson_interval() -> None:
+    from pilworld.bench.hallucination import run_hallucination_bench, wilson
+
+    assert wilson(90, 100) == pytest.approx([0.8256, 0.9448], abs=1e-4)
+    assert wilson(0, 75)[0] == 0.0 and wilson(75, 75)[1] == 1.0  # type: ignore[index]
+    assert wilson(0, 0) is None
+    with pytest.raises(ValueError, match="draws"):
+        run_hallucination_bench("unused", "unused", draws=0)
