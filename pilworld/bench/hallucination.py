@@ -49,6 +49,15 @@ def _category(reason: str) -> str:
     return reason.split(":", 1)[0]
 
 
+def _outcome(frame: int | None, k: int) -> str:
+    """A faulted copy's outcome: its first hallucination ``frame`` against the fault's frame ``k``."""
+    if frame is None:
+        return "missed"
+    if abs(frame - k) <= 1:
+        return "detected"
+    return "early" if frame < k else "late"
+
+
 def wilson(successes: int, n: int, z: float = 1.96) -> list[float] | None:
     """The 95 % Wilson score interval of a rate ``successes / n`` (None when ``n`` is 0)."""
     if n <= 0:
@@ -150,15 +159,11 @@ def run_hallucination_bench(
                 judge_seconds.append(time.perf_counter() - t0)
                 stats["n"] += 1
                 f = v.first_hallucination_frame
-                if f is None:
-                    outcome = "missed"
-                elif abs(f - k) <= 1:
-                    outcome = "detected"
+                outcome = _outcome(f, k)
+                stats[outcome] += 1
+                if outcome == "detected":
                     stats["categories"][_category(v.reason)] += 1
                 else:
-                    outcome = "early" if f < k else "late"
-                stats[outcome] += 1
-                if outcome != "detected":
                     misses.append(
                         {
                             "episode": index,

@@ -16,7 +16,6 @@ from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from multiprocessing import get_all_start_methods, get_context
-from multiprocessing.context import BaseContext
 from pathlib import Path
 from typing import Any
 
@@ -214,14 +213,11 @@ def _fill(
     a process that had decoded the store's videos, FFmpeg's threads, hung every cache build after it).
     ``ProcessPoolExecutor`` raises ``BrokenProcessPool`` when a worker dies (killed for memory, a crash in native
     code) where ``multiprocessing.Pool`` waits forever for the lost clip."""
-    ctx: BaseContext
-    if "forkserver" in get_all_start_methods():
-        server = get_context("forkserver")
+    method = "forkserver" if "forkserver" in get_all_start_methods() else "spawn"
+    ctx = get_context(method)
+    if method == "forkserver":
         # The server imports these once (no threads started yet); each worker forks from it without importing again.
-        server.set_forkserver_preload(_PRELOAD)
-        ctx = server
-    else:
-        ctx = get_context("spawn")
+        ctx.set_forkserver_preload(_PRELOAD)
     env = dict(os.environ)  # the server's environment is from when it started; the workers read this one's
     with ProcessPoolExecutor(
         max(1, workers), mp_context=ctx, initializer=_init_in, initargs=(env, init, initargs)
