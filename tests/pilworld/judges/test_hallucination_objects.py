@@ -199,3 +199,29 @@ def test_what_lay_beneath_all_along_hides_nothing(scene: HeadScene) -> None:
     over = _ObjectFrames(dataclasses.replace(gone, labels=labels, table=table), th)
     assert over.still_beneath(spot, T, 0) == frozenset()
     assert over.hidden_or_seen(spot, T, 0, still=over.still_beneath(spot, T, 0))
+
+
+def test_the_table_grain_of_an_objects_hue_beside_it_does_not_keep_it_there(scene: HeadScene) -> None:
+    """A warm wood's grain can share an object's hue: faded specks of its class beside a vanished object are not
+    the object still there, or a deletion beside them goes unseen. Faded pixels where the object itself was are
+    (an object fading in place, into a shadow or behind a finger), and so are saturated ones beside it."""
+    th = Thresholds()
+    spot = _spot(scene)
+    gone = _vanishing(scene, spot)
+    labels, images = gone.labels.copy(), gone.images.copy()
+    grain = np.zeros_like(spot)
+    grain[4:8, 65:67] = True  # 8 px of faded red grain a pixel from the object, in every frame
+    labels[:, grain] = 1
+    images[:, grain] = (200, 150, 150)
+    beside = dataclasses.replace(gone, labels=labels, images=images)
+    assert (8 >= 0.25 * spot.sum()) and len(_ObjectFrames(beside, th).vanished(T, 0)) == 1
+    fading = labels.copy()
+    fading[T, 5:7, 61:63] = 1  # 4 of its 16 px still of its hue, faded, where it was
+    images_fading = images.copy()
+    images_fading[T, 5:7, 61:63] = (200, 150, 150)
+    assert _ObjectFrames(dataclasses.replace(beside, labels=fading, images=images_fading), th).vanished(T, 0) == []
+    colourful = beside.colourful.copy()
+    colourful[:, grain] = True  # saturated beside it: the object, moved a step
+    images[:, grain] = (230, 40, 40)
+    moved = dataclasses.replace(beside, images=images, colourful=colourful)
+    assert _ObjectFrames(moved, th).vanished(T, 0) == []
