@@ -214,7 +214,8 @@ def test_the_table_grain_of_an_objects_hue_beside_it_does_not_keep_it_there(scen
     labels[:, grain] = 1
     images[:, grain] = (200, 150, 150)
     beside = dataclasses.replace(gone, labels=labels, images=images)
-    assert (8 >= 0.25 * spot.sum()) and len(_ObjectFrames(beside, th).vanished(T, 0)) == 1
+    assert grain.sum() >= 0.25 * spot.sum()  # counted as the object, the grain would keep it "there"
+    assert len(_ObjectFrames(beside, th).vanished(T, 0)) == 1
     fading = labels.copy()
     fading[T, 5:7, 61:63] = 1  # 4 of its 16 px still of its hue, faded, where it was
     images_fading = images.copy()
