@@ -638,8 +638,9 @@ def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thres
         if sig.sum() < 20 * s * s:
             continue  # no gripper in view: nothing to recognise this camera by
         own = (channel_max(frames) < th.signature_dark + 20)[:, sig].mean(axis=1)  # (T,)
-        in_head = (channel_max(head.images) < th.signature_dark + 20)[:, sig].mean(axis=1)
-        base = float(in_head[: min(3, T)].mean())
+        in_head = _dark_away_from_arms(head, sig, th.signature_dark + 20)
+        seen = in_head[np.isfinite(in_head)]
+        base = float(seen[:3].mean()) if seen.size else 1.0  # the first frames the arms leave it visible
         # A tinted key light can light a wrist view's own gripper up to half of it, and a shadow can darken
         # the head view where a gripper would be: one sign alone must be strong; a swapped pair shows both.
         gone = own < th.wrist_signature
@@ -658,6 +659,24 @@ def check_views(head: HeadScene, wrists: dict[str, NDArray[np.uint8]], th: Thres
         if bad[t] and (t + 1 >= T or bad[t + 1] or _persists(head, t)):
             return Finding(t, CROSS_VIEW, why[t])
     return None
+
+
+def _dark_away_from_arms(head: HeadScene, sig: Mask, dark: int) -> NDArray[np.float64]:
+    """Per frame, the share of the head view's pixels at a wrist view's gripper signature ``sig`` that are dark,
+    counting only those away from the head view's own drawn arms (NaN where the arms cover most of it). The head
+    view's own arm, moving over those pixels, darkens them gradually and is no sign of a wrist camera's image:
+    measured on a clean episode, 0.47 → 0.73 of the signature dark in seven frames while the share under the
+    drawn arm rose from 0.26 to 0.42, the share away from it staying at 0.25-0.39."""
+    T = head.length
+    out = np.full(T, np.nan)
+    n_sig = float(sig.sum())
+    is_dark = channel_max(head.images) < dark
+    for t in range(T):
+        free = sig & ~dilate(head.arms.whole[t], 3 * head.scale)
+        n = float(free.sum())
+        if n >= 0.3 * n_sig:
+            out[t] = float((is_dark[t] & free).sum()) / n
+    return out
 
 
 def _persists(head: HeadScene, t: int) -> bool:

@@ -108,6 +108,35 @@ def test_a_lit_wrist_gripper_alone_is_no_swapped_view(episodes: list[Episode], r
     assert found is not None and found.frame == 30 and found.category == "cross-view conflict", found
 
 
+def test_the_head_views_own_arm_over_a_wrist_signature_is_no_swapped_view(
+    episodes: list[Episode], rig: RigConfig
+) -> None:
+    """The head view "shows a wrist view's gripper" when the pixels at that gripper's place in the wrist image turn
+    dark. Its own arm moving over them darkens them too: only pixels away from the drawn arms count. The same
+    darkness away from the arms is a wrist image in the head view."""
+    from pilworld.judges.hallucination import head_scene
+    from pilworld.judges.hallucination_checks import Thresholds, check_views, wrist_signature
+
+    ep, th, view = episodes[1], Thresholds(), "cam_left_wrist"
+    scene = head_scene(ep, rig, episode_task(ep), th)
+    sig = wrist_signature(ep.images[view], th.signature_dark)
+    images, whole = scene.images.copy(), scene.arms.whole.copy()
+    rows, cols = np.nonzero(sig)
+    n = int(0.75 * len(rows))
+    images[30:, rows[:n], cols[:n]] = 20  # three quarters of the signature dark in the head view from 30 on ...
+    whole[30:, rows[:n], cols[:n]] = 1  # ... where an arm is drawn
+    armed = dataclasses.replace(scene, images=images, arms=dataclasses.replace(scene.arms, whole=whole))
+    base = check_views(scene, {view: ep.images[view]}, th)
+    assert base is None, base
+    assert check_views(armed, {view: ep.images[view]}, th) is None
+    images[30:, rows, cols] = 20  # the whole signature dark, half of it away from the arms: a wrist image
+    whole = scene.arms.whole.copy()
+    whole[30:, rows[: n // 2], cols[: n // 2]] = 1
+    shown = dataclasses.replace(armed, images=images, arms=dataclasses.replace(scene.arms, whole=whole))
+    found = check_views(shown, {view: ep.images[view]}, th)
+    assert found is not None and found.frame == 30 and "shows cam_left_wrist" in found.reason, found
+
+
 def test_the_table_colour_does_not_call_a_drawn_arm_table(episodes: list[Episode], rig: RigConfig) -> None:
     """Where the empty scene was never seen (an object always sat there) the table's colour is the rule, but not
     under a drawn arm: an arm of the table's grey would otherwise hide nothing and an object under it vanish."""
