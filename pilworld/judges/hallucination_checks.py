@@ -405,7 +405,12 @@ class _ObjectFrames:
     def still_there(self, blob: Mask, t: int, c: int) -> bool:
         """Is object ``c``, ``blob`` at ``t - 1``, still at ``t`` within a plausible step: a quarter of its size in
         :meth:`solid` pixels of ``c`` near it, or in faded ones where it was (an object fading in place, in a
-        shadow or behind a finger; the table's grain near it does not count)."""
+        shadow or behind a finger; the table's grain near it does not count). A blob under twice the smallest
+        object is a glimpse (a held object's edge under the fingers): any pixels of its hue near it keep it, as
+        its own pixels flicker between the saturated and the faded test (measured: three 6-8 px glimpses beside
+        a closed gripper on 600 clean varied episodes, flagged when they had to be solid)."""
+        if blob.sum() < 2 * self.min_px:
+            return float((dilate(blob, self.step) & self.mask(t, c)).sum()) >= 0.25 * float(blob.sum())
         there = (dilate(blob, self.step) & self.solid(t, c)) | (blob & self.mask(t, c))
         return float(there.sum()) >= 0.25 * float(blob.sum())
 
