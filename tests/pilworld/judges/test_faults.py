@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -177,3 +178,14 @@ def test_specks_of_an_objects_hue_are_no_object_to_fault(episodes: list[Episode]
     assert len(object_colours(scene)) == 2
     seen = visible_objects(scene, T // 2)
     assert list(seen.values()) == [36]  # the red object only; summed, the specks would have been the largest
+
+
+@pytest.mark.parametrize("name", ["cylinder_in_box", "two_pucks"])
+def test_the_never_seen_sets_task_files_are_valid(name: str) -> None:
+    """The task files written for the detector's never-seen varied set (docs/judges.md) stay loadable: the set is
+    re-collected from them."""
+    from simrig.tasks import check_task_file, load_task
+
+    path = Path(__file__).parent / "data" / f"{name}.yaml"
+    assert check_task_file(path) == []
+    assert load_task(path).name == name
